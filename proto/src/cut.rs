@@ -1,0 +1,209 @@
+//! The cut: which nodes of the vertex quadtree are active (paper 000, section 3.4).
+//!
+//! In the paper's words every node is a null-subtree root (active, drawn), a node inside a null
+//! subtree, or a not-null node. The cut stores only the not-null nodes, here called *interior*:
+//! a node is active when its parent is interior (or it is the root) and it is not interior itself.
+//! Every interior node has all its existing children either interior or active, so the active
+//! nodes tile the grid. Storing the interior set alone costs about a third of the active count.
+//!
+//! Both ends keep one: the server for each session, the client as the mirror it rebuilds from
+//! deltas. The [`Cut::digest`] is an order-independent hash of the active set, kept up to date on
+//! every split and merge, that each delta carries so that a desync is detected, never silent.
+
+use crate::tree::{NodeId, TreeShape};
+use rustc_hash::FxHashSet;
+
+/// A split or merge that the current cut does not allow.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum CutError {
+    /// The node is not part of the tree.
+    #[error("node {0:?} does not exist in this terrain")]
+    UnknownNode(NodeId),
+    /// Only an active, non-leaf node can split.
+    #[error("node {0:?} cannot split: it is not an active inner node")]
+    NotSplittable(NodeId),
+    /// Only an interior node whose children are all active can merge.
+    #[error("node {0:?} cannot merge: it is not an interior node with only active children")]
+    NotMergeable(NodeId),
+}
+
+/// The set of interior nodes, plus the digest of the active set it implies.
+#[derive(Clone, Debug, Default)]
+pub struct Cut {
+    /// Dense indices ([`TreeShape::index`]) of the interior (split) nodes.
+    interior: FxHashSet<u64>,
+    /// Sum of [`node_hash`] over the active nodes, wrapping; see [`Cut::digest`].
+    digest: u64,
+    /// Number of active nodes, kept so that sizes are reported without a walk.
+    active: u64,
+}
+
+/// A 64-bit mix of a dense node index: the digest is the wrapping sum of these over the active set.
+pub fn node_hash(index: u64) -> u64 {
+    // splitmix64's finaliser: a bijection with good avalanche, so that sums rarely collide.
+    let mut z = index.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+impl Cut {
+    /// The coarsest cut: the root alone is active.
+    pub fn root(shape: &TreeShape) -> Cut {
+        Cut {
+            interior: FxHashSet::default(),
+            digest: node_hash(shape.index(NodeId::ROOT)),
+            active: 1,
+        }
+    }
+
+    /// Order-independent digest of the active set.
+    pub fn digest(&self) -> u64 {
+        self.digest
+    }
+
+    /// Number of active nodes.
+    pub fn active_count(&self) -> u64 {
+        self.active
+    }
+
+    /// Number of interior nodes.
+    pub fn interior_count(&self) -> usize {
+        self.interior.len()
+    }
+
+    /// Bytes of memory the interior set holds (table slots plus control bytes).
+    pub fn memory_bytes(&self) -> usize {
+        self.interior.capacity() * (std::mem::size_of::<u64>() + 1)
+    }
+
+    /// Whether `node` is interior (split).
+    pub fn is_interior(&self, shape: &TreeShape, node: NodeId) -> bool {
+        self.interior.contains(&shape.index(node))
+    }
+
+    /// Whether `node` is active: its parent is interior (or it is the root) and it is not.
+    pub fn is_active(&self, shape: &TreeShape, node: NodeId) -> bool {
+        shape.contains(node)
+            && !self.is_interior(shape, node)
+            && node.parent().is_none_or(|p| self.is_interior(shape, p))
+    }
+
+    /// The active node whose block holds sample `(col, row)`: walks down from the root.
+    pub fn active_ancestor(&self, shape: &TreeShape, col: u32, row: u32) -> NodeId {
+        let leaf = shape.leaf(col, row);
+        let mut level = 0;
+        loop {
+            let node = leaf.ancestor_at(level);
+            if level == shape.depth() || !self.is_interior(shape, node) {
+                return node;
+            }
+            level += 1;
+        }
+    }
+
+    /// Splits active node `node` into its children.
+    pub fn split(&mut self, shape: &TreeShape, node: NodeId) -> Result<(), CutError> {
+        if !shape.contains(node) {
+            return Err(CutError::UnknownNode(node));
+        }
+        if shape.is_leaf(node) || !self.is_active(shape, node) {
+            return Err(CutError::NotSplittable(node));
+        }
+        let index = shape.index(node);
+        self.interior.insert(index);
+        self.digest = self.digest.wrapping_sub(node_hash(index));
+        self.active -= 1;
+        for (_, c) in shape.children(node) {
+            self.digest = self.digest.wrapping_add(node_hash(shape.index(c)));
+            self.active += 1;
+        }
+        Ok(())
+    }
+
+    /// Merges interior node `node`, all of whose children must be active.
+    pub fn merge(&mut self, shape: &TreeShape, node: NodeId) -> Result<(), CutError> {
+        if !shape.contains(node) {
+            return Err(CutError::UnknownNode(node));
+        }
+        if !self.is_interior(shape, node)
+            || shape
+                .children(node)
+                .any(|(_, c)| self.is_interior(shape, c))
+        {
+            return Err(CutError::NotMergeable(node));
+        }
+        let index = shape.index(node);
+        self.interior.remove(&index);
+        self.digest = self.digest.wrapping_add(node_hash(index));
+        self.active += 1;
+        for (_, c) in shape.children(node) {
+            self.digest = self.digest.wrapping_sub(node_hash(shape.index(c)));
+            self.active -= 1;
+        }
+        Ok(())
+    }
+
+    /// The interior nodes' dense indices, in no particular order.
+    pub fn interior_indices(&self) -> impl Iterator<Item = u64> + '_ {
+        self.interior.iter().copied()
+    }
+
+    /// All active nodes, found by walking down from the root (for tests and snapshots).
+    pub fn active_nodes(&self, shape: &TreeShape) -> Vec<NodeId> {
+        let mut out = Vec::with_capacity(self.active as usize);
+        let mut stack = vec![NodeId::ROOT];
+        while let Some(n) = stack.pop() {
+            if self.is_interior(shape, n) {
+                stack.extend(shape.children(n).map(|(_, c)| c));
+            } else {
+                out.push(n);
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_and_merge_keep_digest_consistent() {
+        let shape = TreeShape::new(9, 6).unwrap();
+        let mut cut = Cut::root(&shape);
+        let d0 = cut.digest();
+        cut.split(&shape, NodeId::ROOT).unwrap();
+        let c = NodeId::ROOT.child(0);
+        cut.split(&shape, c).unwrap();
+        let recomputed: u64 = cut
+            .active_nodes(&shape)
+            .iter()
+            .fold(0u64, |a, &n| a.wrapping_add(node_hash(shape.index(n))));
+        assert_eq!(recomputed, cut.digest());
+        assert_eq!(cut.active_count() as usize, cut.active_nodes(&shape).len());
+        assert_eq!(
+            cut.merge(&shape, NodeId::ROOT),
+            Err(CutError::NotMergeable(NodeId::ROOT))
+        );
+        cut.merge(&shape, c).unwrap();
+        cut.merge(&shape, NodeId::ROOT).unwrap();
+        assert_eq!(cut.digest(), d0);
+    }
+
+    #[test]
+    fn rejects_invalid_operations() {
+        let shape = TreeShape::new(4, 4).unwrap();
+        let mut cut = Cut::root(&shape);
+        let far = NodeId { level: 1, x: 5, y: 0 };
+        assert_eq!(cut.split(&shape, far), Err(CutError::UnknownNode(far)));
+        let child = NodeId::ROOT.child(3);
+        assert_eq!(cut.split(&shape, child), Err(CutError::NotSplittable(child)));
+        cut.split(&shape, NodeId::ROOT).unwrap();
+        cut.split(&shape, child).unwrap();
+        let leaf = child.child(0);
+        assert_eq!(cut.split(&shape, leaf), Err(CutError::NotSplittable(leaf)));
+        assert_eq!(cut.active_ancestor(&shape, 3, 3), child.child(3));
+        assert_eq!(cut.active_ancestor(&shape, 0, 0), NodeId::ROOT.child(0));
+    }
+}
