@@ -195,10 +195,17 @@ mod tests {
     fn rejects_invalid_operations() {
         let shape = TreeShape::new(4, 4).unwrap();
         let mut cut = Cut::root(&shape);
-        let far = NodeId { level: 1, x: 5, y: 0 };
+        let far = NodeId {
+            level: 1,
+            x: 5,
+            y: 0,
+        };
         assert_eq!(cut.split(&shape, far), Err(CutError::UnknownNode(far)));
         let child = NodeId::ROOT.child(3);
-        assert_eq!(cut.split(&shape, child), Err(CutError::NotSplittable(child)));
+        assert_eq!(
+            cut.split(&shape, child),
+            Err(CutError::NotSplittable(child))
+        );
         cut.split(&shape, NodeId::ROOT).unwrap();
         cut.split(&shape, child).unwrap();
         let leaf = child.child(0);

@@ -4,9 +4,22 @@
 //!
 //! - [`tree`]: node addressing of the vertex quadtree (level, x, y), dense indices, node
 //!   positions, and the world frame (origin and axes), stated once here.
+//! - [`terrain`]: tree shape plus metres: node world positions and bounding boxes.
 //! - [`cut`]: the set of active nodes, split and merge, and the digest of the active set.
+//! - [`haar`]: the integer Haar step (parent plus three details) and the static-error code.
+//! - [`view`]: cameras, frustum, screen-space error and the geomorph factor.
+//! - [`delta`]: merges and splits between two cuts, and their compact bit-packed body.
+//! - [`bits`]: the bit writer and reader with Exp-Golomb codes behind that body.
+//! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit.
 //! - [`fan`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
 //!   output-sensitive incremental builder the client uses.
+pub mod bits;
+pub mod codec;
 pub mod cut;
+pub mod delta;
 pub mod fan;
+pub mod haar;
+pub mod msg;
+pub mod terrain;
 pub mod tree;
+pub mod view;

@@ -26,7 +26,11 @@ pub struct NodeId {
 
 impl NodeId {
     /// The root node.
-    pub const ROOT: NodeId = NodeId { level: 0, x: 0, y: 0 };
+    pub const ROOT: NodeId = NodeId {
+        level: 0,
+        x: 0,
+        y: 0,
+    };
 
     /// The parent, or `None` for the root.
     pub fn parent(self) -> Option<NodeId> {
@@ -282,7 +286,11 @@ mod tests {
         assert_eq!(t.depth(), 3);
         assert_eq!(t.level_dims(2), (3, 2));
         assert_eq!(t.level_dims(0), (1, 1));
-        let border = NodeId { level: 2, x: 2, y: 1 };
+        let border = NodeId {
+            level: 2,
+            x: 2,
+            y: 1,
+        };
         assert_eq!(t.children(border).count(), 1);
         assert_eq!(t.block(border), (4, 2, 4, 2));
         // Column 4 stands alone at level 2, so its position is exactly 4.
@@ -311,6 +319,9 @@ mod tests {
     fn rejects_bad_sizes() {
         assert_eq!(TreeShape::new(1, 5), Err(ShapeError::TooSmall(1, 5)));
         assert!(TreeShape::new(2, 2).is_ok());
-        assert!(matches!(TreeShape::new(1 << 21, 4), Err(ShapeError::TooLarge(..))));
+        assert!(matches!(
+            TreeShape::new(1 << 21, 4),
+            Err(ShapeError::TooLarge(..))
+        ));
     }
 }

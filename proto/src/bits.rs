@@ -1,0 +1,185 @@
+//! Bit-level writer and reader with Exp-Golomb codes, for the compact delta body.
+//!
+//! Reading never panics and never reads past the end: every read returns `Option`, `None` when
+//! the input is exhausted or a code is longer than any value the format allows.
+
+/// Appends bits, most significant first, to a byte vector.
+#[derive(Default, Debug)]
+pub struct BitWriter {
+    /// Finished bytes.
+    bytes: Vec<u8>,
+    /// Bits waiting to fill the next byte, in the low `pending_len` bits.
+    pending: u64,
+    /// How many bits of `pending` are in use (always < 8 between calls).
+    pending_len: u32,
+}
+
+impl BitWriter {
+    /// An empty writer.
+    pub fn new() -> BitWriter {
+        BitWriter::default()
+    }
+
+    /// Writes the low `n` bits of `value` (n <= 32).
+    pub fn put(&mut self, value: u32, n: u32) {
+        debug_assert!(n <= 32);
+        if n == 0 {
+            return;
+        }
+        self.pending = (self.pending << n) | (value as u64 & ((1u64 << n) - 1));
+        self.pending_len += n;
+        while self.pending_len >= 8 {
+            self.pending_len -= 8;
+            self.bytes.push((self.pending >> self.pending_len) as u8);
+        }
+        self.pending &= (1u64 << self.pending_len) - 1;
+    }
+
+    /// Writes `value` with an order-`k` Exp-Golomb code.
+    pub fn put_eg(&mut self, value: u64, k: u32) {
+        let v = value + (1u64 << k);
+        let bits = 64 - v.leading_zeros();
+        let prefix = bits - 1 - k;
+        for _ in 0..prefix {
+            self.put(0, 1);
+        }
+        // `bits` may exceed 32: write in two parts.
+        if bits > 32 {
+            self.put((v >> 32) as u32, bits - 32);
+            self.put(v as u32, 32);
+        } else {
+            self.put(v as u32, bits);
+        }
+    }
+
+    /// Writes a signed value, zigzag-mapped, with an order-`k` Exp-Golomb code.
+    pub fn put_eg_signed(&mut self, value: i64, k: u32) {
+        self.put_eg(zigzag(value), k);
+    }
+
+    /// Pads the last byte with zeros and returns the bytes.
+    pub fn finish(mut self) -> Vec<u8> {
+        if self.pending_len > 0 {
+            self.bytes
+                .push((self.pending << (8 - self.pending_len)) as u8);
+        }
+        self.bytes
+    }
+}
+
+/// Reads bits written by [`BitWriter`].
+#[derive(Debug)]
+pub struct BitReader<'a> {
+    /// The input.
+    bytes: &'a [u8],
+    /// Position of the next bit, counted from the start.
+    pos: u64,
+}
+
+impl<'a> BitReader<'a> {
+    /// A reader over `bytes`.
+    pub fn new(bytes: &'a [u8]) -> BitReader<'a> {
+        BitReader { bytes, pos: 0 }
+    }
+
+    /// Bits not yet read.
+    pub fn remaining(&self) -> u64 {
+        self.bytes.len() as u64 * 8 - self.pos
+    }
+
+    /// Reads `n` bits (n <= 32).
+    pub fn get(&mut self, n: u32) -> Option<u32> {
+        if n as u64 > self.remaining() {
+            return None;
+        }
+        let mut v = 0u32;
+        for _ in 0..n {
+            let byte = self.bytes[(self.pos >> 3) as usize];
+            let bit = (byte >> (7 - (self.pos & 7))) & 1;
+            v = (v << 1) | bit as u32;
+            self.pos += 1;
+        }
+        Some(v)
+    }
+
+    /// Reads an order-`k` Exp-Golomb code; `None` past the end or beyond 62 bits.
+    pub fn get_eg(&mut self, k: u32) -> Option<u64> {
+        let mut prefix = 0;
+        while self.get(1)? == 0 {
+            prefix += 1;
+            if prefix + k > 62 {
+                return None;
+            }
+        }
+        let rest = prefix + k;
+        let mut v = 1u64;
+        let mut left = rest;
+        while left > 0 {
+            let n = left.min(32);
+            v = (v << n) | self.get(n)? as u64;
+            left -= n;
+        }
+        Some(v - (1u64 << k))
+    }
+
+    /// Reads a zigzag-mapped signed Exp-Golomb code.
+    pub fn get_eg_signed(&mut self, k: u32) -> Option<i64> {
+        self.get_eg(k).map(unzigzag)
+    }
+}
+
+/// Maps signed to unsigned so that small magnitudes get small codes: 0, -1, 1, -2, ...
+pub fn zigzag(v: i64) -> u64 {
+    ((v << 1) ^ (v >> 63)) as u64
+}
+
+/// Inverse of [`zigzag`].
+pub fn unzigzag(u: u64) -> i64 {
+    ((u >> 1) as i64) ^ -((u & 1) as i64)
+}
+
+/// Length in bits of `value`'s order-`k` Exp-Golomb code.
+pub fn eg_len(value: u64, k: u32) -> u64 {
+    let v = value + (1u64 << k);
+    let bits = 64 - v.leading_zeros() as u64;
+    2 * bits - 1 - k as u64
+}
+
+/// The order `k` in `0..=max_k` that codes all of `values` in the fewest bits.
+pub fn best_order(values: impl Iterator<Item = u64> + Clone, max_k: u32) -> u32 {
+    (0..=max_k)
+        .min_by_key(|&k| values.clone().map(|v| eg_len(v, k)).sum::<u64>())
+        .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn codes_round_trip(vals in proptest::collection::vec((any::<i32>(), 0u32..12), 0..50)) {
+            let mut w = BitWriter::new();
+            for &(v, k) in &vals { w.put_eg_signed(v as i64, k); }
+            let bytes = w.finish();
+            let mut r = BitReader::new(&bytes);
+            for &(v, k) in &vals { prop_assert_eq!(r.get_eg_signed(k), Some(v as i64)); }
+            prop_assert!(r.remaining() < 8);
+        }
+
+        #[test]
+        fn eg_len_matches_writer(v in 0u64..(1 << 40), k in 0u32..16) {
+            let mut w = BitWriter::new();
+            w.put_eg(v, k);
+            let n = w.finish().len() as u64;
+            prop_assert_eq!(n, eg_len(v, k).div_ceil(8));
+        }
+
+        #[test]
+        fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..64), k in 0u32..20) {
+            let mut r = BitReader::new(&bytes);
+            while r.get_eg(k).is_some() {}
+        }
+    }
+}

@@ -1,0 +1,146 @@
+//! The integer Haar transform that turns four children into a parent plus three details
+//! (paper 000, section 3.2.3), and the quantised static-error code.
+//!
+//! Heights travel and are stored as integers in units of the terrain's z quantum. The paper's
+//! real-valued Haar step (average plus three differences over 4) is replaced by its lossless
+//! integer form, the 2D S-transform: a lifting step `lo = b + floor((a - b) / 2)`, `d = a - b`
+//! along rows, then along columns. The parent is the children's mean rounded down, and from the
+//! parent and the three details the four children come back *exactly*, so the client's mirror
+//! holds bit for bit the heights the server holds, and no error accumulates down the tree.
+//!
+//! Border nodes with fewer than four children treat a missing child as a copy of its neighbour
+//! across the missing row or column: the matching details are then 0 and the parent is the mean
+//! of the children that exist, as the node's horizontal position is.
+
+/// Child order as in [`crate::tree::NodeId::child`]: NW, NE, SW, SE.
+pub type Quad = [i32; 4];
+
+/// Which of the four children exist: `east` when the NE/SE column exists, `south` likewise.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Presence {
+    /// Whether the east column of children (NE, SE) exists.
+    pub east: bool,
+    /// Whether the south row of children (SW, SE) exists.
+    pub south: bool,
+}
+
+impl Presence {
+    /// All four children exist.
+    pub const FULL: Presence = Presence {
+        east: true,
+        south: true,
+    };
+}
+
+fn lift(a: i32, b: i32) -> (i32, i32) {
+    let d = a.wrapping_sub(b);
+    (b.wrapping_add(d >> 1), d)
+}
+
+fn unlift(lo: i32, d: i32) -> (i32, i32) {
+    let b = lo.wrapping_sub(d >> 1);
+    (b.wrapping_add(d), b)
+}
+
+/// Forward step: the parent height and the three details of four children heights.
+/// Children that do not exist (per `p`) are ignored.
+pub fn forward(c: Quad, p: Presence) -> (i32, [i32; 3]) {
+    let ne = if p.east { c[1] } else { c[0] };
+    let sw = if p.south { c[2] } else { c[0] };
+    let se = match (p.east, p.south) {
+        (true, true) => c[3],
+        (true, false) => ne,
+        (false, _) => sw,
+    };
+    let (top, dt) = lift(c[0], ne);
+    let (bottom, db) = lift(sw, se);
+    let (parent, dv) = lift(top, bottom);
+    let (dh, dd) = lift(dt, db);
+    (parent, [dv, dh, dd])
+}
+
+/// Inverse step: the four children heights from the parent and its details. Entries for
+/// children that do not exist are copies of a neighbour and carry no meaning.
+pub fn inverse(parent: i32, details: [i32; 3]) -> Quad {
+    let [dv, dh, dd] = details;
+    let (top, bottom) = unlift(parent, dv);
+    let (dt, db) = unlift(dh, dd);
+    let (nw, ne) = unlift(top, dt);
+    let (sw, se) = unlift(bottom, db);
+    [nw, ne, sw, se]
+}
+
+/// Static errors are sent as one byte: code 0 is 0 m, code `k > 0` is
+/// `ERROR_BASE_M * 2^((k - 1) / 11)` metres, a 6.5 % step from 1 cm up to about 89 km.
+pub const ERROR_BASE_M: f32 = 0.01;
+const STEPS_PER_OCTAVE: f32 = 11.0;
+
+/// The metres that error code `code` stands for.
+pub fn error_value(code: u8) -> f32 {
+    if code == 0 {
+        0.0
+    } else {
+        ERROR_BASE_M * ((code - 1) as f32 / STEPS_PER_OCTAVE).exp2()
+    }
+}
+
+/// The smallest code whose value is at least `metres` (rounding up keeps the bound
+/// conservative); saturates at 255.
+pub fn error_code(metres: f32) -> u8 {
+    if metres.is_nan() || metres <= 0.0 {
+        return 0;
+    }
+    let guess = ((metres / ERROR_BASE_M).log2() * STEPS_PER_OCTAVE).floor() + 1.0;
+    let mut k = guess.clamp(1.0, 255.0) as u8;
+    while k < 255 && error_value(k) < metres {
+        k += 1;
+    }
+    while k > 1 && error_value(k - 1) >= metres {
+        k -= 1;
+    }
+    k
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn full_quad_round_trips(c in proptest::array::uniform4(-2_000_000i32..2_000_000)) {
+            let (p, d) = forward(c, Presence::FULL);
+            prop_assert_eq!(inverse(p, d), c);
+            let mean = c.iter().map(|&v| v as i64).sum::<i64>() as f64 / 4.0;
+            prop_assert!((p as f64 - mean).abs() <= 1.0);
+        }
+
+        #[test]
+        fn partial_quads_round_trip(c in proptest::array::uniform4(-100_000i32..100_000),
+                                    east in any::<bool>(), south in any::<bool>()) {
+            let p = Presence { east, south };
+            let (parent, d) = forward(c, p);
+            let back = inverse(parent, d);
+            prop_assert_eq!(back[0], c[0]);
+            if east { prop_assert_eq!(back[1], c[1]); } else { prop_assert_eq!(d[1], 0); }
+            if south { prop_assert_eq!(back[2], c[2]); } else { prop_assert_eq!(d[0], 0); }
+            if east && south { prop_assert_eq!(back[3], c[3]); }
+            if !east && !south { prop_assert_eq!(parent, c[0]); }
+        }
+
+        #[test]
+        fn error_code_is_tight_and_conservative(m in 0.0f32..15_000.0) {
+            let k = error_code(m);
+            prop_assert!(error_value(k) >= m);
+            if k > 1 { prop_assert!(error_value(k - 1) < m); }
+        }
+    }
+
+    #[test]
+    fn error_code_edges() {
+        assert_eq!(error_code(0.0), 0);
+        assert_eq!(error_code(f32::NAN), 0);
+        assert_eq!(error_code(1e9), 255);
+        assert_eq!(error_value(error_code(ERROR_BASE_M)), ERROR_BASE_M);
+    }
+}

@@ -1,0 +1,78 @@
+//! Terrain geometry: a tree shape plus the metres that turn grid units and z quanta into world
+//! coordinates, and the bounding box both ends use for a node's screen error.
+
+use crate::haar::error_value;
+use crate::tree::{NodeId, ShapeError, TreeShape, WorldFrame};
+use crate::view::Aabb;
+use glam::Vec3;
+
+/// Everything needed to place a node in the world: shared by server and client.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TerrainGeometry {
+    /// Which nodes exist and where they sit in the grid.
+    pub shape: TreeShape,
+    /// Grid-to-world mapping.
+    pub frame: WorldFrame,
+    /// Metres per integer height unit: heights travel and are stored in these quanta.
+    pub z_quantum: f32,
+}
+
+impl TerrainGeometry {
+    /// Geometry of a `width` x `height` grid with spacing `dx`, `dy` metres and z quantum `q`.
+    pub fn new(
+        width: u32,
+        height: u32,
+        dx: f32,
+        dy: f32,
+        z_quantum: f32,
+    ) -> Result<TerrainGeometry, ShapeError> {
+        Ok(TerrainGeometry {
+            shape: TreeShape::new(width, height)?,
+            frame: WorldFrame {
+                dx,
+                dy,
+                rows: height,
+            },
+            z_quantum,
+        })
+    }
+
+    /// World position of `node` whose height is `zq` quanta.
+    pub fn world_pos(&self, node: NodeId, zq: i32) -> Vec3 {
+        let (c, r) = self.shape.grid_pos(node);
+        let (x, y) = self.frame.to_world(c, r);
+        Vec3::new(x, y, zq as f32 * self.z_quantum)
+    }
+
+    /// The box used for `node`'s screen error: its sample block in x and y, and its height plus
+    /// or minus its static error in z. The static error bounds how far any sample of the subtree
+    /// lies from the node's height, so the box holds the whole subtree; and because it is built
+    /// only from what a split carries, the client computes exactly the server's box.
+    pub fn node_box(&self, node: NodeId, zq: i32, err_code: u8) -> Aabb {
+        let (c0, r0, c1, r1) = self.shape.block(node);
+        let (x0, y1) = self.frame.to_world(c0 as f32, r0 as f32);
+        let (x1, y0) = self.frame.to_world(c1 as f32, r1 as f32);
+        let z = zq as f32 * self.z_quantum;
+        let e = error_value(err_code);
+        Aabb {
+            min: Vec3::new(x0, y0, z - e),
+            max: Vec3::new(x1, y1, z + e),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn box_spans_block_and_error() {
+        let g = TerrainGeometry::new(5, 3, 10.0, 20.0, 0.5).unwrap();
+        let b = g.node_box(NodeId::ROOT, 100, crate::haar::error_code(3.0));
+        assert_eq!((b.min.x, b.max.x), (0.0, 40.0));
+        assert_eq!((b.min.y, b.max.y), (0.0, 40.0));
+        assert!(b.min.z <= 47.0 && b.max.z >= 53.0);
+        let p = g.world_pos(NodeId::ROOT, 100);
+        assert_eq!(p.z, 50.0);
+    }
+}

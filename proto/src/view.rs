@@ -1,0 +1,239 @@
+//! Cameras, the view frustum, the screen-space error of a node and the geomorph factor
+//! (paper 000, sections 3.3 and 3.6).
+//!
+//! Server and client evaluate these with the same code on the same inputs (a node's quantised
+//! static error and its bounding box, both derivable from what a split carries), so the client's
+//! geomorph factor reaches 0 exactly when the server merges.
+//!
+//! **Screen error.** The paper projects the static error `e` at the distance `d` to the nearest
+//! point of the node's box and scales it by the orientation factor `sqrt(1 - (e_p . e_z)^2)`, the
+//! sine of the angle between the view ray and the vertical. For a planar projection with focal
+//! length `K` pixels, a vertical offset `e` at a point with view depth `Z` and horizontal distance
+//! `r` from the eye moves at most `K e r / Z^2` pixels, which is the paper's formula with the
+//! sine written as `r / d` and the distance taken along the view axis. We bound it over the box:
+//! `K e min(r_max / Z_min, c) / Z_min`, where `c = 1 / cos` of the frustum's widest off-axis
+//! angle bounds `r / Z` for points in view. The bound is monotone (a parent's box holds its
+//! children's and its error is saturated), which keeps threshold cuts consistent. Boxes outside
+//! the frustum have screen error 0.
+
+use glam::Vec3;
+
+/// A camera pose in world metres and radians.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position, world metres.
+    pub eye: Vec3,
+    /// Heading, counter-clockwise from east (0 looks east, pi/2 north).
+    pub yaw: f32,
+    /// Elevation of the view direction; negative looks down.
+    pub pitch: f32,
+}
+
+impl Camera {
+    /// Unit view direction.
+    pub fn forward(&self) -> Vec3 {
+        let (sy, cy) = self.yaw.sin_cos();
+        let (sp, cp) = self.pitch.sin_cos();
+        Vec3::new(cy * cp, sy * cp, sp)
+    }
+
+    /// Whether every component is finite and the pitch is within (-90, 90) degrees.
+    pub fn is_valid(&self) -> bool {
+        self.eye.is_finite()
+            && self.yaw.is_finite()
+            && self.pitch.is_finite()
+            && self.pitch.abs() < std::f32::consts::FRAC_PI_2
+    }
+}
+
+/// Viewport and lens: what a client tells the server once per session.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lens {
+    /// Viewport width, pixels.
+    pub width: u32,
+    /// Viewport height, pixels.
+    pub height: u32,
+    /// Vertical field of view, degrees.
+    pub fov_y_deg: f32,
+    /// Near plane distance, metres.
+    pub near: f32,
+}
+
+impl Lens {
+    /// The project's standard view (DESIGN.md section 7): 1920x1080, 60 degrees, near 1 m.
+    pub const STANDARD: Lens = Lens {
+        width: 1920,
+        height: 1080,
+        fov_y_deg: 60.0,
+        near: 1.0,
+    };
+
+    /// Focal length in pixels: pixels per metre at 1 m of view depth.
+    pub fn focal_px(&self) -> f32 {
+        self.height as f32 / (2.0 * (self.fov_y_deg.to_radians() / 2.0).tan())
+    }
+
+    /// Half-extents of the image plane at depth 1: (tan of half horizontal fov, of half vertical).
+    pub fn half_tangents(&self) -> (f32, f32) {
+        let ty = (self.fov_y_deg.to_radians() / 2.0).tan();
+        (ty * self.width as f32 / self.height as f32, ty)
+    }
+}
+
+/// An axis-aligned box in world metres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Aabb {
+    /// Minimum corner.
+    pub min: Vec3,
+    /// Maximum corner.
+    pub max: Vec3,
+}
+
+/// A camera and lens prepared for many screen-error evaluations.
+#[derive(Clone, Debug)]
+pub struct ViewState {
+    /// The eye, world metres.
+    eye: Vec3,
+    /// Unit view direction.
+    forward: Vec3,
+    /// Focal length, pixels.
+    focal: f32,
+    /// Near plane distance, metres: depths are clamped to it.
+    near: f32,
+    /// Bound on `r / Z` for points in view (1 / cos of the widest off-axis angle).
+    off_axis: f32,
+    /// Inward normals of the four side planes through the eye, then the near plane's.
+    planes: [Vec3; 5],
+}
+
+impl ViewState {
+    /// Prepares `camera` seen through `lens`.
+    pub fn new(camera: &Camera, lens: &Lens) -> ViewState {
+        let forward = camera.forward();
+        let right = forward.cross(Vec3::Z).normalize_or(Vec3::X);
+        let up = right.cross(forward);
+        let (tx, ty) = lens.half_tangents();
+        // Each side plane holds the eye and one frustum edge; `f * t + a` is its inward normal,
+        // perpendicular to the edge direction `f - t * a` (a = right or up, unit and orthogonal).
+        let planes = [
+            (right + forward * tx).normalize(),
+            (forward * tx - right).normalize(),
+            (up + forward * ty).normalize(),
+            (forward * ty - up).normalize(),
+            forward,
+        ];
+        ViewState {
+            eye: camera.eye,
+            forward,
+            focal: lens.focal_px(),
+            near: lens.near,
+            off_axis: (1.0 + tx * tx + ty * ty).sqrt(),
+            planes,
+        }
+    }
+
+    /// The eye position.
+    pub fn eye(&self) -> Vec3 {
+        self.eye
+    }
+
+    /// Whether any part of `b` may lie inside the frustum (conservative).
+    pub fn intersects(&self, b: &Aabb) -> bool {
+        let rel_min = b.min - self.eye;
+        let rel_max = b.max - self.eye;
+        self.planes.iter().enumerate().all(|(i, n)| {
+            // The box corner furthest along the plane normal.
+            let p = Vec3::select(n.cmpge(Vec3::ZERO), rel_max, rel_min);
+            let offset = if i == 4 { self.near } else { 0.0 };
+            n.dot(p) >= offset
+        })
+    }
+
+    /// Screen-space error in pixels of a node with static error `err` metres and box `b`.
+    pub fn screen_error(&self, b: &Aabb, err: f32) -> f32 {
+        if err <= 0.0 || !self.intersects(b) {
+            return 0.0;
+        }
+        let rel_min = b.min - self.eye;
+        let rel_max = b.max - self.eye;
+        // Nearest depth along the view axis over the box.
+        let near_corner = Vec3::select(self.forward.cmpge(Vec3::ZERO), rel_min, rel_max);
+        let depth = self.forward.dot(near_corner).max(self.near);
+        // Furthest horizontal distance over the box.
+        let fx = rel_min.x.abs().max(rel_max.x.abs());
+        let fy = rel_min.y.abs().max(rel_max.y.abs());
+        let r_max = (fx * fx + fy * fy).sqrt();
+        self.focal * err * (r_max / depth).min(self.off_axis) / depth
+    }
+}
+
+/// Geomorph factor of the children of a node whose screen error is `e_scr` (paper 000,
+/// section 3.6): 1 puts them at their own positions, 0 on their parent's. It falls from 1 to 0 as
+/// the parent's error falls from `lambda * tau` to `tau`, so a merge at `tau` never pops.
+pub fn morph_alpha(e_scr: f32, tau: f32, lambda: f32) -> f32 {
+    ((e_scr - tau) / ((lambda - 1.0) * tau)).clamp(0.0, 1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam(pitch_deg: f32) -> ViewState {
+        let c = Camera {
+            eye: Vec3::new(0.0, 0.0, 100.0),
+            yaw: 0.0,
+            pitch: pitch_deg.to_radians(),
+        };
+        ViewState::new(&c, &Lens::STANDARD)
+    }
+
+    fn cube(x: f32, y: f32, z: f32, h: f32) -> Aabb {
+        Aabb {
+            min: Vec3::new(x - h, y - h, z - h),
+            max: Vec3::new(x + h, y + h, z + h),
+        }
+    }
+
+    #[test]
+    fn culls_what_is_behind_or_beside() {
+        let v = cam(0.0);
+        assert!(v.intersects(&cube(500.0, 0.0, 100.0, 1.0)));
+        assert!(!v.intersects(&cube(-500.0, 0.0, 100.0, 1.0)));
+        assert!(!v.intersects(&cube(10.0, 500.0, 100.0, 1.0)));
+        assert_eq!(v.screen_error(&cube(-500.0, 0.0, 100.0, 1.0), 5.0), 0.0);
+    }
+
+    #[test]
+    fn error_falls_with_distance_and_vanishes_straight_down() {
+        let v = cam(0.0);
+        let near = v.screen_error(&cube(100.0, 0.0, 100.0, 1.0), 1.0);
+        let far = v.screen_error(&cube(1000.0, 0.0, 100.0, 1.0), 1.0);
+        assert!(near > 5.0 * far, "{near} vs {far}");
+        let down = cam(-89.0);
+        let below = down.screen_error(&cube(0.0, 0.0, 0.0, 0.01), 1.0);
+        let aside = down.screen_error(&cube(50.0, 0.0, 0.0, 0.01), 1.0);
+        assert!(below < 0.01 * aside, "{below} vs {aside}");
+    }
+
+    #[test]
+    fn morph_alpha_spans_tau_to_lambda_tau() {
+        assert_eq!(morph_alpha(1.0, 1.0, 2.0), 0.0);
+        assert_eq!(morph_alpha(0.5, 1.0, 2.0), 0.0);
+        assert_eq!(morph_alpha(1.5, 1.0, 2.0), 0.5);
+        assert_eq!(morph_alpha(3.0, 1.0, 2.0), 1.0);
+    }
+
+    #[test]
+    fn invalid_cameras_are_flagged() {
+        let mut c = Camera {
+            eye: Vec3::new(0.0, 0.0, f32::NAN),
+            yaw: 0.0,
+            pitch: 0.0,
+        };
+        assert!(!c.is_valid());
+        c.eye.z = 1.0;
+        assert!(c.is_valid());
+        c.pitch = 2.0;
+        assert!(!c.is_valid());
+    }
+}
