@@ -11,6 +11,7 @@
 //! - [`delta`]: merges and splits between two cuts, and their compact bit-packed body.
 //! - [`bits`]: the bit writer and reader with Exp-Golomb codes behind that body.
 //! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit.
+//! - [`path`]: the standard and stress camera paths.
 //! - [`fan`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
 //!   output-sensitive incremental builder the client uses.
 pub mod bits;
@@ -20,6 +21,7 @@ pub mod delta;
 pub mod fan;
 pub mod haar;
 pub mod msg;
+pub mod path;
 pub mod terrain;
 pub mod tree;
 pub mod view;

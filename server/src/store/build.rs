@@ -1,0 +1,207 @@
+//! Building the vertex quadtree from a DEM (paper 000, sections 3.1-3.2): integer heights, the
+//! Haar pyramid, subtree z-bounds and saturated static errors.
+//!
+//! One bottom-up pass per level over the children of each node:
+//! - the node's height is the integer Haar low-pass of its children's ([`relief_proto::haar`]);
+//! - its z-bounds are the min and max of its children's;
+//! - its deviation is how far any sample of the subtree lies from its height,
+//!   `max(zmax - z, z - zmin)`, and its static error that deviation saturated with its children's
+//!   errors, so that errors never decrease going up the tree (DESIGN.md section 3, as paper 002
+//!   does through its dependencies). The error also bounds the subtree's heights, which is what
+//!   lets one byte give both the error and the z extent of a node's box.
+//!
+//! - nodes on the grid's border also count their *border shrink*: a node's vertex sits at the mean
+//!   of its samples, so a coarse border node pulls the mesh's edge inwards by up to half its
+//!   block. Counting that horizontal distance as error makes the edge refine like any other
+//!   detail, so the terrain's outline never visibly recedes.
+//!
+//! The pass is single-threaded and touches each node once.
+
+use relief_proto::haar::{self, Presence, error_code};
+use relief_proto::terrain::TerrainGeometry;
+use relief_proto::tree::{NodeId, TreeShape};
+
+/// The tree's per-node arrays, indexed by dense node index ([`TreeShape::index`]).
+#[derive(Debug, Default)]
+pub struct TreeArrays {
+    /// Height of every node, in z quanta.
+    pub z: Vec<i32>,
+    /// Static-error code of every inner node (leaves have error 0 and are not stored).
+    pub err: Vec<u8>,
+    /// Lowest sample height in each inner node's subtree, in z quanta.
+    pub zmin: Vec<i32>,
+    /// Highest sample height in each inner node's subtree, in z quanta.
+    pub zmax: Vec<i32>,
+}
+
+/// Builds the arrays from row-major heights in metres (voids already filled).
+///
+/// `progress` is called with the fraction done after each level.
+pub fn build_arrays(
+    geom: &TerrainGeometry,
+    heights: &[f32],
+    mut progress: impl FnMut(f64),
+) -> TreeArrays {
+    let shape = &geom.shape;
+    let quantum = geom.z_quantum;
+    let n = shape.node_count() as usize;
+    let inner = shape.level_offset(shape.depth()) as usize;
+    let mut t = TreeArrays {
+        z: vec![0; n],
+        err: vec![0; inner],
+        zmin: vec![0; inner],
+        zmax: vec![0; inner],
+    };
+    let leaf0 = inner;
+    for (dst, &h) in t.z[leaf0..].iter_mut().zip(heights) {
+        *dst = (h / quantum).round() as i32;
+    }
+    let total = n as f64;
+    let mut done = (n - inner) as f64;
+    progress(done / total);
+    for level in (0..shape.depth()).rev() {
+        build_level(geom, level, &mut t);
+        let (w, h) = shape.level_dims(level);
+        done += w as f64 * h as f64;
+        progress(done / total);
+    }
+    t
+}
+
+fn build_level(geom: &TerrainGeometry, level: u8, t: &mut TreeArrays) {
+    let shape = &geom.shape;
+    let quantum = geom.z_quantum;
+    let (w, h) = shape.level_dims(level);
+    let (cw, ch) = shape.level_dims(level + 1);
+    let base = shape.level_offset(level) as usize;
+    let cbase = shape.level_offset(level + 1) as usize;
+    let child_is_leaf = level + 1 == shape.depth();
+    for y in 0..h {
+        let south = 2 * y + 1 < ch;
+        for x in 0..w {
+            let east = 2 * x + 1 < cw;
+            let p = Presence { east, south };
+            let c0 = cbase + (2 * y) as usize * cw as usize + (2 * x) as usize;
+            let c2 = c0 + cw as usize;
+            let idx = [c0, c0 + east as usize, if south { c2 } else { c0 }, {
+                if south {
+                    c2 + east as usize
+                } else {
+                    c0 + east as usize
+                }
+            }];
+            let quad = idx.map(|i| t.z[i]);
+            let (z, _) = haar::forward(quad, p);
+            let (lo, hi, child_err) = if child_is_leaf {
+                let lo = *quad.iter().min().unwrap_or(&z);
+                let hi = *quad.iter().max().unwrap_or(&z);
+                (lo, hi, 0u8)
+            } else {
+                let lo = idx.iter().map(|&i| t.zmin[i]).min().unwrap_or(z);
+                let hi = idx.iter().map(|&i| t.zmax[i]).max().unwrap_or(z);
+                let e = idx.iter().map(|&i| t.err[i]).max().unwrap_or(0);
+                (lo, hi, e)
+            };
+            let me = base + (y * w + x) as usize;
+            let deviation = (hi as i64 - z as i64).max(z as i64 - lo as i64) as f32 * quantum;
+            t.z[me] = z;
+            t.zmin[me] = lo;
+            t.zmax[me] = hi;
+            let shrink = border_shrink(geom, NodeId { level, x, y });
+            t.err[me] = error_code(deviation.max(shrink)).max(child_err);
+        }
+    }
+}
+
+/// How far, in metres, `node`'s vertex lies inside the grid border its block touches (0 for a
+/// node that touches none).
+fn border_shrink(geom: &TerrainGeometry, node: NodeId) -> f32 {
+    let shape = &geom.shape;
+    let (c0, r0, c1, r1) = shape.block(node);
+    let (c, r) = shape.grid_pos(node);
+    let mut s: f32 = 0.0;
+    if c0 == 0 {
+        s = s.max(c * geom.frame.dx);
+    }
+    if c1 == shape.width() - 1 {
+        s = s.max((c1 as f32 - c) * geom.frame.dx);
+    }
+    if r0 == 0 {
+        s = s.max(r * geom.frame.dy);
+    }
+    if r1 == shape.height() - 1 {
+        s = s.max((r1 as f32 - r) * geom.frame.dy);
+    }
+    s
+}
+
+/// The three Haar details of `node`'s split, from its children's heights in `z`.
+pub fn split_details(shape: &TreeShape, z: &[i32], node: NodeId) -> [i32; 3] {
+    let mut quad = [0i32; 4];
+    let mut present = [false; 4];
+    for (k, c) in shape.children(node) {
+        quad[k] = z[shape.index(c) as usize];
+        present[k] = true;
+    }
+    let p = Presence {
+        east: present[1],
+        south: present[2],
+    };
+    haar::forward(quad, p).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relief_proto::haar::error_value;
+
+    fn ramp(w: u32, h: u32) -> Vec<f32> {
+        (0..w * h)
+            .map(|i| ((i % w) as f32 * 3.0 + (i / w) as f32 * 7.0).sin() * 40.0 + 100.0)
+            .collect()
+    }
+
+    #[test]
+    fn errors_are_monotone_and_bound_the_subtree() {
+        for (w, h) in [(17, 9), (32, 32), (5, 40)] {
+            let geom = TerrainGeometry::new(w, h, 1.0, 1.0, 0.25).unwrap();
+            let shape = &geom.shape;
+            let heights = ramp(w, h);
+            let t = build_arrays(&geom, &heights, |_| {});
+            let inner = shape.level_offset(shape.depth());
+            for i in 0..inner {
+                let node = shape.node(i).unwrap();
+                let e = error_value(t.err[i as usize]);
+                let z = t.z[i as usize];
+                let (c0, r0, c1, r1) = shape.block(node);
+                for r in r0..=r1 {
+                    for c in c0..=c1 {
+                        let leaf = t.z[shape.index(shape.leaf(c, r)) as usize];
+                        assert!(((leaf - z) as f32 * 0.25).abs() <= e, "{node:?}");
+                    }
+                }
+                for (_, c) in shape.children(node) {
+                    let ci = shape.index(c);
+                    if ci < inner {
+                        assert!(t.err[ci as usize] <= t.err[i as usize]);
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn details_rebuild_children_exactly() {
+        let geom = TerrainGeometry::new(13, 6, 1.0, 1.0, 0.1).unwrap();
+        let shape = &geom.shape;
+        let t = build_arrays(&geom, &ramp(13, 6), |_| {});
+        for i in 0..shape.level_offset(shape.depth()) {
+            let node = shape.node(i).unwrap();
+            let d = split_details(shape, &t.z, node);
+            let quad = haar::inverse(t.z[i as usize], d);
+            for (k, c) in shape.children(node) {
+                assert_eq!(quad[k], t.z[shape.index(c) as usize]);
+            }
+        }
+    }
+}

@@ -1,0 +1,152 @@
+//! The store file: one versioned, checksummed file holding the vertex quadtree.
+//!
+//! Layout, all little-endian:
+//! - a 256-byte header: magic `RELIEFST`, format version, grid size, spacing, z quantum, then
+//!   the offset and length of each section, the CRC-32 of the sections, and last the CRC-32 of
+//!   the header itself;
+//! - the sections, each aligned to 8 bytes so that they can be read in place from the map:
+//!   `z` (i32 per node), `err` (u8 per inner node), `zmin` and `zmax` (i32 per inner node),
+//!   `voids` (one bit per sample, row-major, 1 = no data in the source), `meta` (JSON).
+//!
+//! Opening checks the magic, the version, the header CRC, that every section lies inside the file
+//! and has the length the grid implies, and the sections' CRC. Any failure is a [`StoreError`]
+//! naming the problem: a store is never half-read.
+
+use super::StoreError;
+use std::io::Write;
+
+/// File magic: the first eight bytes of every store.
+pub const MAGIC: &[u8; 8] = b"RELIEFST";
+/// The format version this build writes and reads.
+pub const VERSION: u32 = 1;
+/// Header size in bytes.
+pub const HEADER_LEN: usize = 256;
+/// Section order in the file.
+pub const SECTIONS: [&str; 6] = ["z", "err", "zmin", "zmax", "voids", "meta"];
+
+/// The fixed fields of the header.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Header {
+    /// Grid width in samples.
+    pub width: u32,
+    /// Grid height in samples.
+    pub height: u32,
+    /// Ground metres between columns.
+    pub spacing_x: f64,
+    /// Ground metres between rows.
+    pub spacing_y: f64,
+    /// Metres per integer height unit.
+    pub z_quantum: f64,
+    /// (offset, length) in bytes of each section, in [`SECTIONS`] order.
+    pub sections: [(u64, u64); 6],
+    /// CRC-32 of all section bytes, in file order.
+    pub body_crc: u32,
+}
+
+impl Header {
+    /// Serialises the header, CRC last.
+    pub fn to_bytes(&self) -> [u8; HEADER_LEN] {
+        let mut b = [0u8; HEADER_LEN];
+        b[0..8].copy_from_slice(MAGIC);
+        b[8..12].copy_from_slice(&VERSION.to_le_bytes());
+        b[12..16].copy_from_slice(&self.width.to_le_bytes());
+        b[16..20].copy_from_slice(&self.height.to_le_bytes());
+        b[24..32].copy_from_slice(&self.spacing_x.to_le_bytes());
+        b[32..40].copy_from_slice(&self.spacing_y.to_le_bytes());
+        b[40..48].copy_from_slice(&self.z_quantum.to_le_bytes());
+        for (i, (off, len)) in self.sections.iter().enumerate() {
+            let at = 48 + 16 * i;
+            b[at..at + 8].copy_from_slice(&off.to_le_bytes());
+            b[at + 8..at + 16].copy_from_slice(&len.to_le_bytes());
+        }
+        b[144..148].copy_from_slice(&self.body_crc.to_le_bytes());
+        let crc = crc32fast::hash(&b[..HEADER_LEN - 4]);
+        b[HEADER_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
+        b
+    }
+
+    /// Parses and checks a header; `file_len` is the whole file's size.
+    pub fn parse(b: &[u8], file_len: u64) -> Result<Header, StoreError> {
+        if b.len() < HEADER_LEN {
+            if b.len() >= 8 && &b[..8] != MAGIC {
+                return Err(StoreError::NotAStore);
+            }
+            return Err(StoreError::Truncated {
+                expected: HEADER_LEN as u64,
+                actual: b.len() as u64,
+            });
+        }
+        if &b[..8] != MAGIC {
+            return Err(StoreError::NotAStore);
+        }
+        let u32_at = |at: usize| u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]);
+        let u64_at = |at: usize| {
+            let mut a = [0u8; 8];
+            a.copy_from_slice(&b[at..at + 8]);
+            u64::from_le_bytes(a)
+        };
+        let version = u32_at(8);
+        if version != VERSION {
+            return Err(StoreError::Version {
+                found: version,
+                supported: VERSION,
+            });
+        }
+        if crc32fast::hash(&b[..HEADER_LEN - 4]) != u32_at(HEADER_LEN - 4) {
+            return Err(StoreError::Corrupt("header checksum mismatch".into()));
+        }
+        let mut sections = [(0u64, 0u64); 6];
+        for (i, s) in sections.iter_mut().enumerate() {
+            *s = (u64_at(48 + 16 * i), u64_at(56 + 16 * i));
+            let end =
+                s.0.checked_add(s.1)
+                    .ok_or(StoreError::Corrupt("section bounds overflow".into()))?;
+            if end > file_len {
+                return Err(StoreError::Truncated {
+                    expected: end,
+                    actual: file_len,
+                });
+            }
+            if s.0 % 8 != 0 || s.0 < HEADER_LEN as u64 {
+                return Err(StoreError::Corrupt(format!(
+                    "section {} is misplaced",
+                    SECTIONS[i]
+                )));
+            }
+        }
+        Ok(Header {
+            width: u32_at(12),
+            height: u32_at(16),
+            spacing_x: f64::from_bits(u64_at(24)),
+            spacing_y: f64::from_bits(u64_at(32)),
+            z_quantum: f64::from_bits(u64_at(40)),
+            sections,
+            body_crc: u32_at(144),
+        })
+    }
+}
+
+/// Writes a header placeholder, the sections, then the real header, to `out`.
+pub fn write_sections<W: Write + std::io::Seek>(
+    out: &mut W,
+    mut header: Header,
+    sections: [&[u8]; 6],
+) -> std::io::Result<u64> {
+    use std::io::SeekFrom;
+    out.write_all(&[0u8; HEADER_LEN])?;
+    let mut pos = HEADER_LEN as u64;
+    let mut crc = crc32fast::Hasher::new();
+    for (i, s) in sections.iter().enumerate() {
+        header.sections[i] = (pos, s.len() as u64);
+        out.write_all(s)?;
+        crc.update(s);
+        pos += s.len() as u64;
+        let pad = (8 - pos % 8) % 8;
+        out.write_all(&[0u8; 8][..pad as usize])?;
+        pos += pad;
+    }
+    header.body_crc = crc.finalize();
+    out.seek(SeekFrom::Start(0))?;
+    out.write_all(&header.to_bytes())?;
+    Ok(pos)
+}

@@ -1,0 +1,90 @@
+//! Store round trip and corrupt-input tests.
+
+use super::*;
+
+fn input<'a>(heights: &'a [f32], voids: &'a [bool], w: u32, h: u32) -> StoreInput<'a> {
+    StoreInput {
+        width: w,
+        height: h,
+        spacing_x: 30.0,
+        spacing_y: 25.0,
+        z_quantum: 0.25,
+        heights,
+        voids,
+        meta: StoreMeta {
+            source: "test".into(),
+            ..StoreMeta::default()
+        },
+    }
+}
+
+fn sample_store(dir: &Path) -> std::path::PathBuf {
+    let (w, h) = (37u32, 21u32);
+    let heights: Vec<f32> = (0..w * h).map(|i| (i % 13) as f32 * 2.5).collect();
+    let voids: Vec<bool> = (0..w * h).map(|i| i % 50 == 0).collect();
+    let path = dir.join("t.relief");
+    write_store(&path, &input(&heights, &voids, w, h), |_| {}).unwrap();
+    path
+}
+
+#[test]
+fn round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = sample_store(dir.path());
+    let s = Store::open(&path).unwrap();
+    let g = s.geometry();
+    assert_eq!((g.shape.width(), g.shape.height()), (37, 21));
+    assert_eq!(s.z().len() as u64, g.shape.node_count());
+    assert!(s.is_void(0, 0));
+    assert!(!s.is_void(1, 0));
+    let leaf = g.shape.index(g.shape.leaf(3, 0)) as usize;
+    assert_eq!(s.z()[leaf], 30); // 7.5 m / 0.25 m
+    assert_eq!(s.meta().source, "test");
+}
+
+fn expect_err(path: &Path, bytes: &[u8]) -> StoreError {
+    std::fs::write(path, bytes).unwrap();
+    match Store::open(path) {
+        Ok(_) => panic!("corrupt store accepted"),
+        Err(e) => e,
+    }
+}
+
+#[test]
+fn corrupt_stores_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = sample_store(dir.path());
+    let good = std::fs::read(&path).unwrap();
+    let bad = dir.path().join("bad.relief");
+
+    let e = expect_err(&bad, &good[..good.len() / 2]);
+    assert!(matches!(e, StoreError::Truncated { .. }), "{e}");
+    let e = expect_err(&bad, &good[..100]);
+    assert!(matches!(e, StoreError::Truncated { .. }), "{e}");
+    let e = expect_err(&bad, b"GIF89a not a store at all");
+    assert!(matches!(e, StoreError::NotAStore), "{e}");
+    let e = expect_err(&bad, b"");
+    assert!(matches!(e, StoreError::Truncated { .. }), "{e}");
+
+    let mut flipped = good.clone();
+    let n = flipped.len();
+    flipped[n / 2] ^= 0x10;
+    let e = expect_err(&bad, &flipped);
+    assert!(matches!(e, StoreError::Corrupt(_)), "{e}");
+
+    let mut hdr = good.clone();
+    hdr[13] ^= 1; // width
+    let e = expect_err(&bad, &hdr);
+    assert!(matches!(e, StoreError::Corrupt(_)), "{e}");
+
+    let mut ver = good.clone();
+    ver[8] = 9;
+    let e = expect_err(&bad, &ver);
+    assert!(matches!(e, StoreError::Version { found: 9, .. }), "{e}");
+    assert!(e.to_string().contains("rebuild"));
+
+    let e = Store::open(&dir.path().join("missing.relief"))
+        .err()
+        .unwrap();
+    assert!(matches!(e, StoreError::Io { .. }), "{e}");
+}
