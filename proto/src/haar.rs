@@ -75,13 +75,22 @@ pub fn inverse(parent: i32, details: [i32; 3]) -> Quad {
 pub const ERROR_BASE_M: f32 = 0.01;
 const STEPS_PER_OCTAVE: f32 = 11.0;
 
+fn table() -> &'static [f32; 256] {
+    static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        std::array::from_fn(|k| {
+            if k == 0 {
+                0.0
+            } else {
+                ERROR_BASE_M * ((k - 1) as f32 / STEPS_PER_OCTAVE).exp2()
+            }
+        })
+    })
+}
+
 /// The metres that error code `code` stands for.
 pub fn error_value(code: u8) -> f32 {
-    if code == 0 {
-        0.0
-    } else {
-        ERROR_BASE_M * ((code - 1) as f32 / STEPS_PER_OCTAVE).exp2()
-    }
+    table()[code as usize]
 }
 
 /// The smallest code whose value is at least `metres` (rounding up keeps the bound
@@ -90,15 +99,7 @@ pub fn error_code(metres: f32) -> u8 {
     if metres.is_nan() || metres <= 0.0 {
         return 0;
     }
-    let guess = ((metres / ERROR_BASE_M).log2() * STEPS_PER_OCTAVE).floor() + 1.0;
-    let mut k = guess.clamp(1.0, 255.0) as u8;
-    while k < 255 && error_value(k) < metres {
-        k += 1;
-    }
-    while k > 1 && error_value(k - 1) >= metres {
-        k -= 1;
-    }
-    k
+    table().partition_point(|&v| v < metres).min(255) as u8
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@
 //! - [`view`]: cameras, frustum, screen-space error and the geomorph factor.
 //! - [`delta`]: merges and splits between two cuts, and their compact bit-packed body.
 //! - [`bits`]: the bit writer and reader with Exp-Golomb codes behind that body.
+//! - [`mirror`]: the client-side cut with heights, rebuilt from deltas and checked by digest.
 //! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit.
 //! - [`path`]: the standard and stress camera paths.
 //! - [`fan`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
@@ -20,6 +21,7 @@ pub mod cut;
 pub mod delta;
 pub mod fan;
 pub mod haar;
+pub mod mirror;
 pub mod msg;
 pub mod path;
 pub mod terrain;

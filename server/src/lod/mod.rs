@@ -4,3 +4,6 @@
 //! - [`measure`]: the measured pixel error of a mesh for a camera (DESIGN.md section 7).
 pub mod measure;
 pub mod vertex;
+
+#[cfg(test)]
+mod tests;

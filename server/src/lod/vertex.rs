@@ -163,6 +163,7 @@ impl<'s> VertexEngine<'s> {
         }
         // The walk meets nodes depth-first; the wire wants parents before children.
         delta.splits.sort_unstable_by_key(|s| shape.index(s.node));
+        delta.merges.sort_unstable_by_key(|&n| shape.index(n));
         delta.digest = cut.digest();
         delta
     }

@@ -5,11 +5,12 @@
 //! - the node's height is the integer Haar low-pass of its children's ([`relief_proto::haar`]);
 //! - its z-bounds are the min and max of its children's;
 //! - its deviation is how far any sample of the subtree lies from its height,
-//!   `max(zmax - z, z - zmin)`, and its static error that deviation saturated with its children's
-//!   errors, so that errors never decrease going up the tree (DESIGN.md section 3, as paper 002
-//!   does through its dependencies). The error also bounds the subtree's heights, which is what
-//!   lets one byte give both the error and the z extent of a node's box.
-//!
+//!   `max(zmax - z, z - zmin)`; its static error is that deviation saturated with each child's
+//!   error *plus the child's offset* `|z_child - z|`, so that errors never decrease going up the
+//!   tree (DESIGN.md section 3, as paper 002 does through its dependencies) and, more strongly,
+//!   the box `z +- error` of a node holds its children's boxes. The error bounds the subtree's
+//!   heights, which is what lets one byte give both the error and the z extent of a node's box;
+//!   nested boxes make the screen error monotone, so threshold cuts are consistent;
 //! - nodes on the grid's border also count their *border shrink*: a node's vertex sits at the mean
 //!   of its samples, so a coarse border node pulls the mesh's edge inwards by up to half its
 //!   block. Counting that horizontal distance as error makes the edge refine like any other
@@ -17,7 +18,7 @@
 //!
 //! The pass is single-threaded and touches each node once.
 
-use relief_proto::haar::{self, Presence, error_code};
+use relief_proto::haar::{self, Presence, error_code, error_value};
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::{NodeId, TreeShape};
 
@@ -92,15 +93,18 @@ fn build_level(geom: &TerrainGeometry, level: u8, t: &mut TreeArrays) {
             }];
             let quad = idx.map(|i| t.z[i]);
             let (z, _) = haar::forward(quad, p);
-            let (lo, hi, child_err) = if child_is_leaf {
+            let (lo, hi, nested) = if child_is_leaf {
                 let lo = *quad.iter().min().unwrap_or(&z);
                 let hi = *quad.iter().max().unwrap_or(&z);
-                (lo, hi, 0u8)
+                (lo, hi, 0.0f32)
             } else {
                 let lo = idx.iter().map(|&i| t.zmin[i]).min().unwrap_or(z);
                 let hi = idx.iter().map(|&i| t.zmax[i]).max().unwrap_or(z);
-                let e = idx.iter().map(|&i| t.err[i]).max().unwrap_or(0);
-                (lo, hi, e)
+                let nested = idx
+                    .iter()
+                    .map(|&i| error_value(t.err[i]) + (t.z[i] - z).unsigned_abs() as f32 * quantum)
+                    .fold(0.0f32, f32::max);
+                (lo, hi, nested)
             };
             let me = base + (y * w + x) as usize;
             let deviation = (hi as i64 - z as i64).max(z as i64 - lo as i64) as f32 * quantum;
@@ -108,7 +112,7 @@ fn build_level(geom: &TerrainGeometry, level: u8, t: &mut TreeArrays) {
             t.zmin[me] = lo;
             t.zmax[me] = hi;
             let shrink = border_shrink(geom, NodeId { level, x, y });
-            t.err[me] = error_code(deviation.max(shrink)).max(child_err);
+            t.err[me] = error_code(deviation.max(shrink).max(nested));
         }
     }
 }
@@ -153,7 +157,6 @@ pub fn split_details(shape: &TreeShape, z: &[i32], node: NodeId) -> [i32; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use relief_proto::haar::error_value;
 
     fn ramp(w: u32, h: u32) -> Vec<f32> {
         (0..w * h)
@@ -184,6 +187,10 @@ mod tests {
                     let ci = shape.index(c);
                     if ci < inner {
                         assert!(t.err[ci as usize] <= t.err[i as usize]);
+                        // The child's box lies inside the parent's.
+                        let ce = error_value(t.err[ci as usize]);
+                        let dz = (t.z[ci as usize] - z) as f32 * 0.25;
+                        assert!(dz.abs() + ce <= e, "{c:?} box escapes {node:?}");
                     }
                 }
             }
