@@ -139,32 +139,83 @@ impl ViewState {
 
     /// Whether any part of `b` may lie inside the frustum (conservative).
     pub fn intersects(&self, b: &Aabb) -> bool {
+        self.box_view(b).margin >= 0.0
+    }
+
+    /// Where box `b` lies relative to this view: what the screen error and its bounds need.
+    pub fn box_view(&self, b: &Aabb) -> BoxView {
         let rel_min = b.min - self.eye;
         let rel_max = b.max - self.eye;
-        self.planes.iter().enumerate().all(|(i, n)| {
+        let mut margin = f32::INFINITY;
+        for (i, n) in self.planes.iter().enumerate() {
             // The box corner furthest along the plane normal.
             let p = Vec3::select(n.cmpge(Vec3::ZERO), rel_max, rel_min);
             let offset = if i == 4 { self.near } else { 0.0 };
-            n.dot(p) >= offset
-        })
+            margin = margin.min(n.dot(p) - offset);
+        }
+        // Nearest depth along the view axis over the box.
+        let near_corner = Vec3::select(self.forward.cmpge(Vec3::ZERO), rel_min, rel_max);
+        let far = rel_min.abs().max(rel_max.abs());
+        BoxView {
+            margin,
+            depth: self.forward.dot(near_corner),
+            r_max: (far.x * far.x + far.y * far.y).sqrt(),
+            d_max: far.length(),
+        }
+    }
+
+    /// Screen error from a box's view terms: see the module docs.
+    pub fn error_of(&self, bv: &BoxView, err: f32) -> f32 {
+        if err <= 0.0 || bv.margin < 0.0 {
+            return 0.0;
+        }
+        let depth = bv.depth.max(self.near);
+        self.focal * err * (bv.r_max / depth).min(self.off_axis) / depth
     }
 
     /// Screen-space error in pixels of a node with static error `err` metres and box `b`.
     pub fn screen_error(&self, b: &Aabb, err: f32) -> f32 {
-        if err <= 0.0 || !self.intersects(b) {
+        if err <= 0.0 {
             return 0.0;
         }
-        let rel_min = b.min - self.eye;
-        let rel_max = b.max - self.eye;
-        // Nearest depth along the view axis over the box.
-        let near_corner = Vec3::select(self.forward.cmpge(Vec3::ZERO), rel_min, rel_max);
-        let depth = self.forward.dot(near_corner).max(self.near);
-        // Furthest horizontal distance over the box.
-        let fx = rel_min.x.abs().max(rel_max.x.abs());
-        let fy = rel_min.y.abs().max(rel_max.y.abs());
-        let r_max = (fx * fx + fy * fy).sqrt();
-        self.focal * err * (r_max / depth).min(self.off_axis) / depth
+        self.error_of(&self.box_view(b), err)
     }
+
+    /// Focal length, pixels.
+    pub fn focal(&self) -> f32 {
+        self.focal
+    }
+
+    /// Near plane distance, metres.
+    pub fn near(&self) -> f32 {
+        self.near
+    }
+
+    /// Bound on `r / Z` for points in view.
+    pub fn off_axis(&self) -> f32 {
+        self.off_axis
+    }
+
+    /// The view basis: forward, right, up (unit vectors).
+    pub fn basis(&self) -> [Vec3; 3] {
+        let right = self.forward.cross(Vec3::Z).normalize_or(Vec3::X);
+        [self.forward, right, right.cross(self.forward)]
+    }
+}
+
+/// A box seen from a view: the terms of its screen error.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoxView {
+    /// Distance by which the box clears the frustum test: >= 0 when it may be in view (then the
+    /// box can move this far relative to the camera and still pass), < 0 when culled (then minus
+    /// the distance it must move to pass).
+    pub margin: f32,
+    /// Nearest depth of the box along the view axis (may be negative), metres.
+    pub depth: f32,
+    /// Furthest horizontal distance from the eye to the box, metres.
+    pub r_max: f32,
+    /// Furthest distance from the eye to the box, metres.
+    pub d_max: f32,
 }
 
 /// Geomorph factor of the children of a node whose screen error is `e_scr` (paper 000,

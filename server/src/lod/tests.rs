@@ -223,3 +223,56 @@ fn mirror_refuses_a_forged_digest() {
         Err(MirrorError::Desync { .. })
     ));
 }
+
+/// A smooth random flight: small steps and turns, now and then a fast one.
+fn flight(w: u32, h: u32, seed: u64, n: usize) -> Vec<Camera> {
+    let mut s = seed | 1;
+    let mut rnd = move || {
+        s ^= s << 13;
+        s ^= s >> 7;
+        s ^= s << 17;
+        (s % 10_000) as f32 / 10_000.0
+    };
+    let mut c = camera(w, h, (rnd(), rnd(), rnd() * 0.5, rnd(), rnd()));
+    (0..n)
+        .map(|_| {
+            let fast = if rnd() < 0.1 { 20.0 } else { 1.0 };
+            c.eye += Vec3::new(rnd() - 0.5, rnd() - 0.5, (rnd() - 0.5) * 0.3) * 8.0 * fast;
+            c.eye.z = c.eye.z.max(15.0);
+            c.yaw += (rnd() - 0.5) * 0.05 * fast;
+            c.pitch = (c.pitch + (rnd() - 0.5) * 0.03 * fast).clamp(-1.4, -0.05);
+            c
+        })
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(16))]
+
+    #[test]
+    fn event_driven_session_matches_the_full_pass(w in 20u32..120, h in 20u32..120,
+                                                  seed in any::<u64>(), tau in 0.5f32..4.0) {
+        use super::session::VertexSession;
+        let dir = tempfile::tempdir().unwrap();
+        let s = store(dir.path(), w, h, seed);
+        let engine = VertexEngine::new(&s);
+        let p = LodParams { tau, ..LodParams::default() };
+        let cams = flight(w, h, seed, 60);
+        let v0 = ViewState::new(&cams[0], &lens());
+        let mut st = UpdateStats::default();
+        let mut full = engine.initial_cut(&v0, &p, &mut st);
+        let mut session = VertexSession::new(&engine, &v0, &p);
+        let (mut full_visits, mut session_visits) = (0, 0);
+        for (i, cam) in cams.iter().enumerate() {
+            let view = ViewState::new(cam, &lens());
+            let mut a = UpdateStats::default();
+            let mut b = UpdateStats::default();
+            let d1 = engine.update(&mut full, &view, &p, i as u64, &mut a);
+            let d2 = session.update(&engine, &view, &p, i as u64, &mut b);
+            prop_assert_eq!(d1, d2, "update {}", i);
+            full_visits += a.visited;
+            session_visits += b.visited;
+        }
+        prop_assert!(session_visits <= full_visits);
+    }
+}

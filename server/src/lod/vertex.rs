@@ -21,7 +21,7 @@ use relief_proto::delta::{Delta, Split};
 use relief_proto::haar::error_value;
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
-use relief_proto::view::ViewState;
+use relief_proto::view::{BoxView, ViewState};
 
 /// Thresholds of the cut, in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -81,6 +81,14 @@ impl<'s> VertexEngine<'s> {
         };
         let b = self.geom.node_box(node, self.store.z()[i], code);
         view.screen_error(&b, error_value(code))
+    }
+
+    /// The view terms of `node`'s box and its static error in metres.
+    pub fn box_view(&self, view: &ViewState, node: NodeId) -> (BoxView, f32) {
+        let i = self.geom.shape.index(node) as usize;
+        let code = self.store.err().get(i).copied().unwrap_or(0);
+        let b = self.geom.node_box(node, self.store.z()[i], code);
+        (view.box_view(&b), error_value(code))
     }
 
     /// What a client needs to split `node`.

@@ -1,0 +1,277 @@
+//! One session's cut with event-driven updates: only the nodes whose decision can have changed
+//! since they were last examined are examined again.
+//!
+//! The paper's top-down pass (paper 000, section 3.4; [`VertexEngine::update`]) touches every
+//! interior and active node on every update. This session produces exactly the same deltas, but
+//! it groups the checks by interior node: the group of an interior node `P` is the split check of
+//! each of its active children and, when all of them are active, `P`'s own merge check. After a
+//! group is examined, the engine computes a *slack*: how far the camera-relative position of `P`'s
+//! box may move before any of those decisions can flip. The bounds are the screen-error formula's
+//! own terms ([`BoxView`]) taken at their worst over that displacement: the nearest depth shrinks
+//! or grows by at most the displacement, the horizontal reach likewise, and the frustum test's
+//! margin likewise. Camera translation moves a box by at most the eye's travel; camera rotation
+//! by angle `a` moves a point at distance `D` by at most `D * a`. So the group is filed in the
+//! band of its distance, and each band keeps an odometer that advances by the eye's travel plus
+//! the band's distance times the rotation; a group is due when its band's odometer passes its key.
+//!
+//! Due groups are processed shallowest first, so that, as in the paper's pass, a node moves at most
+//! one level per update. Splitting a child files the child's own new group as due at the next
+//! update; a merge files the grandparent's group as due at the next update.
+//!
+//! State per session: the cut's interior set, each interior node's key, and the band queues; all
+//! proportional to the number of interior nodes (about a third of the active ones).
+
+use super::vertex::{LodParams, UpdateStats, VertexEngine};
+use glam::Vec3;
+use relief_proto::cut::Cut;
+use relief_proto::delta::Delta;
+use relief_proto::tree::NodeId;
+use relief_proto::view::{BoxView, ViewState};
+use rustc_hash::FxHashMap;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+/// Distance bands: band `b` holds groups whose boxes lie within `2^b` metres of the eye.
+const BANDS: usize = 48;
+/// Safety factor on every slack, against rounding in the bounds.
+const SLACK_SAFETY: f64 = 0.98;
+/// A rotation moves any vector by at most this factor times the largest move of the basis vectors.
+const ROTATION_FACTOR: f64 = 1.25;
+
+/// A session's cut plus the schedule of its next checks.
+pub struct VertexSession {
+    /// The cut.
+    cut: Cut,
+    /// Each interior node's due key and band, by dense index; a queued entry that does not match
+    /// is stale and skipped.
+    keys: FxHashMap<u32, (f32, u8)>,
+    /// Per band: queued (key bits, node) pairs, earliest first.
+    queues: Vec<BinaryHeap<Reverse<(u32, u32)>>>,
+    /// Per band: the odometer, metres of camera-relative motion since the session began.
+    odometers: Vec<f64>,
+    /// The previous update's eye and view basis, to measure the camera's motion.
+    previous: Option<(Vec3, [Vec3; 3])>,
+}
+
+impl VertexSession {
+    /// A session whose initial cut is computed for `view` (all groups due at the first update).
+    pub fn new(engine: &VertexEngine<'_>, view: &ViewState, p: &LodParams) -> VertexSession {
+        let cut = engine.initial_cut(view, p, &mut UpdateStats::default());
+        VertexSession::from_cut(engine, cut)
+    }
+
+    /// A session continuing from `cut` (all groups due at the first update).
+    pub fn from_cut(engine: &VertexEngine<'_>, cut: Cut) -> VertexSession {
+        let mut s = VertexSession {
+            cut,
+            keys: FxHashMap::default(),
+            queues: (0..BANDS).map(|_| BinaryHeap::new()).collect(),
+            odometers: vec![0.0; BANDS],
+            previous: None,
+        };
+        let interior: Vec<u64> = s.cut.interior_indices().collect();
+        for i in interior {
+            if let Some(n) = engine.geometry().shape.node(i) {
+                s.file(engine, n, 0.0, 0);
+            }
+        }
+        s
+    }
+
+    /// The current cut.
+    pub fn cut(&self) -> &Cut {
+        &self.cut
+    }
+
+    /// Bytes of memory the session's state holds.
+    pub fn memory_bytes(&self) -> usize {
+        let queued: usize = self.queues.iter().map(|q| q.capacity() * 8).sum();
+        self.cut.memory_bytes() + self.keys.capacity() * 13 + queued + std::mem::size_of::<Self>()
+    }
+
+    /// Files `node`'s group with `slack` metres of motion before it is due, in `band`.
+    fn file(&mut self, engine: &VertexEngine<'_>, node: NodeId, slack: f64, band: usize) {
+        let idx = engine.geometry().shape.index(node) as u32;
+        let key = self.odometers[band] + slack;
+        let mut k = key as f32;
+        if k as f64 > key {
+            k = k.next_down();
+        }
+        let k = if k > 0.0 { k } else { 0.0 };
+        self.keys.insert(idx, (k, band as u8));
+        self.queues[band].push(Reverse((k.to_bits(), idx)));
+    }
+
+    /// Advances the odometers by the camera's motion since the last update.
+    fn advance(&mut self, view: &ViewState) {
+        let eye = view.eye();
+        let basis = view.basis();
+        if let Some((pe, pb)) = self.previous {
+            let travel = (eye - pe).length() as f64;
+            let turn = basis
+                .iter()
+                .zip(pb.iter())
+                .map(|(a, b)| 2.0 * ((*a - *b).length() as f64 / 2.0).min(1.0).asin())
+                .fold(0.0, f64::max)
+                * ROTATION_FACTOR;
+            for (b, o) in self.odometers.iter_mut().enumerate() {
+                *o += travel + (b as f64).exp2() * turn;
+            }
+        }
+        self.previous = Some((eye, basis));
+    }
+
+    /// One update for `view`: the same delta as the paper's full top-down pass.
+    pub fn update(
+        &mut self,
+        engine: &VertexEngine<'_>,
+        view: &ViewState,
+        p: &LodParams,
+        seq: u64,
+        stats: &mut UpdateStats,
+    ) -> Delta {
+        let shape = &engine.geometry().shape;
+        self.advance(view);
+        let mut delta = Delta {
+            seq,
+            ..Delta::default()
+        };
+        if !self.cut.is_interior(shape, NodeId::ROOT) {
+            stats.visited += 1;
+            if engine.screen_error(view, NodeId::ROOT) > p.tau {
+                let _ = self.cut.split(shape, NodeId::ROOT);
+                delta.splits.push(engine.split_payload(NodeId::ROOT));
+                self.file(engine, NodeId::ROOT, 0.0, 0);
+            }
+            delta.digest = self.cut.digest();
+            return delta;
+        }
+        let mut due = Vec::new();
+        for (b, q) in self.queues.iter_mut().enumerate() {
+            let now = self.odometers[b];
+            while let Some(&Reverse((k, idx))) = q.peek() {
+                if f32::from_bits(k) as f64 > now {
+                    break;
+                }
+                q.pop();
+                if self.keys.get(&idx) == Some(&(f32::from_bits(k), b as u8)) {
+                    due.push(idx);
+                }
+            }
+        }
+        // Shallowest first (dense indices grow with depth), as the paper's top-down pass.
+        due.sort_unstable();
+        due.dedup();
+        for idx in due {
+            let Some(node) = shape.node(idx as u64) else {
+                continue;
+            };
+            self.process(engine, view, p, node, &mut delta, stats);
+        }
+        delta.splits.sort_unstable_by_key(|s| shape.index(s.node));
+        delta.merges.sort_unstable_by_key(|&n| shape.index(n));
+        delta.digest = self.cut.digest();
+        delta
+    }
+
+    /// Examines the group of interior node `node`.
+    fn process(
+        &mut self,
+        engine: &VertexEngine<'_>,
+        view: &ViewState,
+        p: &LodParams,
+        node: NodeId,
+        delta: &mut Delta,
+        stats: &mut UpdateStats,
+    ) {
+        let shape = &engine.geometry().shape;
+        if !self.cut.is_interior(shape, node) {
+            return;
+        }
+        let all_active = shape
+            .children(node)
+            .all(|(_, c)| !self.cut.is_interior(shape, c));
+        let (bv, err) = engine.box_view(view, node);
+        let mut slack = f64::INFINITY;
+        if all_active {
+            stats.visited += 1;
+            let e = view.error_of(&bv, err);
+            if e < p.tau * p.merge_ratio {
+                let _ = self.cut.merge(shape, node);
+                self.keys.remove(&(shape.index(node) as u32));
+                delta.merges.push(node);
+                if let Some(parent) = node.parent() {
+                    self.file(engine, parent, 0.0, 0);
+                }
+                return;
+            }
+            slack = merge_slack(view, &bv, err, p.tau * p.merge_ratio);
+        }
+        for (_, c) in shape.children(node) {
+            if shape.is_leaf(c) || self.cut.is_interior(shape, c) {
+                continue;
+            }
+            stats.visited += 1;
+            let (cv, cerr) = engine.box_view(view, c);
+            if view.error_of(&cv, cerr) > p.tau {
+                let _ = self.cut.split(shape, c);
+                delta.splits.push(engine.split_payload(c));
+                self.file(engine, c, 0.0, 0);
+            } else {
+                slack = slack.min(split_slack(view, &cv, cerr, p.tau));
+            }
+        }
+        let slack = (slack * SLACK_SAFETY).max(0.0);
+        let reach = bv.d_max as f64 + slack;
+        let band = (reach.max(1.0).log2().ceil() as usize).min(BANDS - 1);
+        self.file(engine, node, slack, band);
+    }
+}
+
+/// How far a box may move relative to the camera while a node with error `err` and screen error
+/// at most `tau` stays at most `tau`.
+fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32) -> f64 {
+    if err <= 0.0 {
+        return f64::INFINITY;
+    }
+    if bv.margin < 0.0 {
+        // Culled: nothing can change until the box reaches the frustum.
+        return -bv.margin as f64;
+    }
+    let near = view.near() as f64;
+    let z = bv.depth as f64;
+    let r = bv.r_max as f64;
+    let a = view.focal() as f64 * err as f64 / tau as f64;
+    // Branch e <= K err (r + d) / (z - d)^2: the smaller root of (z - d)^2 = a (r + d).
+    let c = z * z - a * r;
+    let s_a = if z > near && c >= 0.0 {
+        let b = 2.0 * z + a;
+        let disc = (b * b - 4.0 * c).max(0.0);
+        (2.0 * c / (b + disc.sqrt())).min(z - near)
+    } else {
+        0.0
+    };
+    // Branch e <= K err c / (z - d).
+    let s_c = z - (a * view.off_axis() as f64).max(near);
+    s_a.max(s_c).max(0.0)
+}
+
+/// How far a box may move relative to the camera while a node with error `err` and screen error
+/// at least `tau_m` stays at least `tau_m`.
+fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32) -> f64 {
+    let near = view.near() as f64;
+    let z = (bv.depth as f64).max(near);
+    let r = bv.r_max as f64;
+    let b = view.focal() as f64 * err as f64 / tau_m as f64;
+    // Branch e >= K err (r - d) / (z + d)^2: the larger root of (z + d)^2 = b (r - d).
+    let c = z * z - b * r;
+    let s_a = if c <= 0.0 {
+        let bb = 2.0 * z + b;
+        -2.0 * c / (bb + (bb * bb - 4.0 * c).sqrt())
+    } else {
+        0.0
+    };
+    // Branch e >= K err c / (z + d).
+    let s_c = b * view.off_axis() as f64 - z;
+    (bv.margin as f64).min(s_a).min(s_c).max(0.0)
+}
