@@ -1,1 +1,1 @@
-//! placeholder
+//! End-to-end tests of Relief live in `tests/`; this library is empty.

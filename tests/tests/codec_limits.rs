@@ -1,0 +1,74 @@
+//! Decoding untrusted frames never allocates beyond the codec's limit (issue 2: "decoding random
+//! bytes never panics and never allocates beyond the limit").
+//!
+//! A counting global allocator records the largest single allocation made while decoding random
+//! and adversarial frames; it must stay within the frame limit.
+#![allow(unsafe_code)] // Reason: a test-only global allocator that counts, then defers to `System`.
+
+use proptest::prelude::*;
+use relief_proto::codec::{HARD_LIMIT, decode};
+use relief_proto::delta::Delta;
+use relief_proto::msg::ServerMsg;
+use relief_proto::tree::TreeShape;
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+struct Counting;
+
+static LARGEST: AtomicUsize = AtomicUsize::new(0);
+
+// SAFETY: every call is forwarded unchanged to the system allocator; we only record sizes.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        LARGEST.fetch_max(layout.size(), Ordering::Relaxed);
+        // SAFETY: same layout, same contract as the caller's.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: `ptr` came from `System.alloc` with this layout.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOC: Counting = Counting;
+
+/// Tests in this file run one at a time, so that the counter sees one decoder alone (other
+/// threads of the harness may still allocate, which can only make the check stricter).
+static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+fn largest_during(f: impl FnOnce()) -> usize {
+    let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    LARGEST.store(0, Ordering::Relaxed);
+    f();
+    LARGEST.load(Ordering::Relaxed)
+}
+
+proptest! {
+    #[test]
+    fn random_frames_stay_within_the_limit(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let limit = 4096;
+        let peak = largest_during(|| { let _ = decode::<ServerMsg>(&bytes, limit); });
+        prop_assert!(peak <= limit, "allocated {} bytes for a {}-byte frame", peak, bytes.len());
+    }
+
+    #[test]
+    fn random_bodies_stay_within_their_size(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let shape = TreeShape::new(4097, 4097).unwrap();
+        let peak = largest_during(|| { let _ = Delta::unpack_body(&shape, 0.1, 0, 0, &bytes); });
+        // At most one entry per bit of input, of a few dozen bytes each.
+        prop_assert!(peak <= 64 * 8 * bytes.len().max(1), "allocated {} bytes", peak);
+    }
+}
+
+#[test]
+fn a_length_prefix_claiming_gigabytes_allocates_nothing_large() {
+    // ServerMsg::Delta { seq: 1, digest: 2, body: <len = 2^40> }, then 3 bytes.
+    let mut frame = vec![0u8, 1, 2, 0xFD];
+    frame.extend_from_slice(&(1u64 << 40).to_le_bytes());
+    frame.extend_from_slice(&[1, 2, 3]);
+    let peak = largest_during(|| {
+        assert!(decode::<ServerMsg>(&frame, HARD_LIMIT).is_err());
+    });
+    assert!(peak < 1 << 16, "allocated {peak} bytes");
+}
