@@ -103,7 +103,7 @@ mod tests {
         assert_eq!(p.len(), 600);
         for c in &p {
             let agl = c.eye.z - ground(c.eye.x, c.eye.y);
-            assert!(agl >= 99.0 && agl <= 700.0, "{agl}");
+            assert!((99.0..=700.0).contains(&agl), "{agl}");
             assert!(c.is_valid());
             let down = -c.pitch.to_degrees();
             assert!((10.0..=20.0).contains(&down));
