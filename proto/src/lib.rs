@@ -13,14 +13,14 @@
 //! - [`mirror`]: the client-side cut with heights, rebuilt from deltas and checked by digest.
 //! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit.
 //! - [`path`]: the standard and stress camera paths.
-//! - [`fan`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
+//! - [`mesh`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
 //!   output-sensitive incremental builder the client uses.
 pub mod bits;
 pub mod codec;
 pub mod cut;
 pub mod delta;
-pub mod fan;
 pub mod haar;
+pub mod mesh;
 pub mod mirror;
 pub mod msg;
 pub mod path;

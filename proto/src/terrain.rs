@@ -44,12 +44,15 @@ impl TerrainGeometry {
         Vec3::new(x, y, zq as f32 * self.z_quantum)
     }
 
-    /// The box used for `node`'s screen error: its sample block in x and y, and its height plus
-    /// or minus its static error in z. The static error bounds how far any sample of the subtree
+    /// The box used for `node`'s screen error: its nominal block in x and y (which holds its
+    /// samples and every vertex of its subtree, see [`crate::tree`]), and its height plus or minus
+    /// its static error in z. The static error bounds how far any sample of the subtree
     /// lies from the node's height, so the box holds the whole subtree; and because it is built
     /// only from what a split carries, the client computes exactly the server's box.
     pub fn node_box(&self, node: NodeId, zq: i32, err_code: u8) -> Aabb {
-        let (c0, r0, c1, r1) = self.shape.block(node);
+        let s = self.shape.depth() - node.level;
+        let (c0, r0) = ((node.x as u64) << s, (node.y as u64) << s);
+        let (c1, r1) = (c0 + (1u64 << s) - 1, r0 + (1u64 << s) - 1);
         let (x0, y1) = self.frame.to_world(c0 as f32, r0 as f32);
         let (x1, y0) = self.frame.to_world(c1 as f32, r1 as f32);
         let z = zq as f32 * self.z_quantum;
@@ -69,8 +72,9 @@ mod tests {
     fn box_spans_block_and_error() {
         let g = TerrainGeometry::new(5, 3, 10.0, 20.0, 0.5).unwrap();
         let b = g.node_box(NodeId::ROOT, 100, crate::haar::error_code(3.0));
-        assert_eq!((b.min.x, b.max.x), (0.0, 40.0));
-        assert_eq!((b.min.y, b.max.y), (0.0, 40.0));
+        // The nominal block of the root of a 5x3 grid is 8x8 samples.
+        assert_eq!((b.min.x, b.max.x), (0.0, 70.0));
+        assert_eq!((b.min.y, b.max.y), (-100.0, 40.0));
         assert!(b.min.z <= 47.0 && b.max.z >= 53.0);
         let p = g.world_pos(NodeId::ROOT, 100);
         assert_eq!(p.z, 50.0);

@@ -3,8 +3,14 @@
 //! The leaves are the W x H samples of the DEM grid. A node at level `l`, position `(x, y)` covers
 //! the block of samples `[x * 2^s, (x + 1) * 2^s) x [y * 2^s, (y + 1) * 2^s)` clipped to the grid,
 //! with `s = depth - l`. Level 0 is the root (one node), level `depth` the samples themselves.
-//! Sizes that are not powers of two need no padding: a node on the east or south border simply
-//! has one or two children instead of four, and its position is the average of the children it has.
+//! Sizes that are not powers of two need no padded data: a node on the east or south border simply
+//! has one or two children instead of four. Every node's position is the centre of its *nominal*
+//! block `[x * 2^s, (x + 1) * 2^s)`, which for full blocks is the mean of its children's positions
+//! (the Haar low-pass). For a border node whose block is clipped, the nominal centre may lie up to
+//! half a block beyond the grid's edge: its vertex is placed as if the grid had been padded to a
+//! power of two. That keeps the reconstruction rule fold-free (paper 000's argument holds on the
+//! padded grid, and Relief's mesh is a subset of that mesh), where the clipped block's own centre
+//! folds thin border strips over their neighbours. The height is the mean of the real samples.
 //!
 //! **World frame.** Metres, x east, y north, z up. The origin is the south-west sample of the grid
 //! (column 0, row H-1), so that every coordinate of the terrain is non-negative. Row 0 is north:
@@ -75,10 +81,6 @@ pub struct TreeShape {
     dims: Vec<(u32, u32)>,
     /// Dense index of the first node of each level, plus the total node count at the end.
     offsets: Vec<u64>,
-    /// Column coordinate (in samples) of each node column at each level: the mean of its children.
-    col_pos: Vec<Vec<f32>>,
-    /// Row coordinate (in samples) of each node row at each level: the mean of its children.
-    row_pos: Vec<Vec<f32>>,
 }
 
 /// A grid size the tree cannot represent.
@@ -114,16 +116,12 @@ impl TreeShape {
             dims.push(d);
         }
         offsets.push(total);
-        let col_pos = axis_positions(width, depth);
-        let row_pos = axis_positions(height, depth);
         Ok(TreeShape {
             width,
             height,
             depth,
             dims,
             offsets,
-            col_pos,
-            row_pos,
         })
     }
 
@@ -220,29 +218,15 @@ impl TreeShape {
         }
     }
 
-    /// Position of a node in grid units: (column, row) as reals, the mean of its children's.
+    /// Position of a node in grid units: (column, row) as reals, the centre of its nominal block.
     pub fn grid_pos(&self, node: NodeId) -> (f32, f32) {
+        let s = self.depth - node.level;
+        let half = ((1u64 << s) - 1) as f32 / 2.0;
         (
-            self.col_pos[node.level as usize][node.x as usize],
-            self.row_pos[node.level as usize][node.y as usize],
+            ((node.x as u64) << s) as f32 + half,
+            ((node.y as u64) << s) as f32 + half,
         )
     }
-}
-
-/// Positions along one axis at every level: level `depth` holds `0, 1, 2, ...`, and each coarser
-/// entry is the mean of the (one or two) finer entries it covers.
-fn axis_positions(n: u32, depth: u8) -> Vec<Vec<f32>> {
-    let mut levels = vec![Vec::new(); depth as usize + 1];
-    levels[depth as usize] = (0..n).map(|i| i as f32).collect();
-    for l in (0..depth as usize).rev() {
-        let fine = &levels[l + 1];
-        let coarse = fine
-            .chunks(2)
-            .map(|c| c.iter().sum::<f32>() / c.len() as f32)
-            .collect();
-        levels[l] = coarse;
-    }
-    levels
 }
 
 /// The mapping from grid coordinates to world metres (see the module docs for the frame).
@@ -293,8 +277,8 @@ mod tests {
         };
         assert_eq!(t.children(border).count(), 1);
         assert_eq!(t.block(border), (4, 2, 4, 2));
-        // Column 4 stands alone at level 2, so its position is exactly 4.
-        assert_eq!(t.grid_pos(border).0, 4.0);
+        // Column 4 stands alone at level 2, but its vertex sits at its nominal block's centre.
+        assert_eq!(t.grid_pos(border), (4.5, 2.5));
     }
 
     #[test]

@@ -11,10 +11,10 @@
 //!   the box `z +- error` of a node holds its children's boxes. The error bounds the subtree's
 //!   heights, which is what lets one byte give both the error and the z extent of a node's box;
 //!   nested boxes make the screen error monotone, so threshold cuts are consistent;
-//! - nodes on the grid's border also count their *border shrink*: a node's vertex sits at the mean
-//!   of its samples, so a coarse border node pulls the mesh's edge inwards by up to half its
-//!   block. Counting that horizontal distance as error makes the edge refine like any other
-//!   detail, so the terrain's outline never visibly recedes.
+//! - nodes on the east and south borders also count their *overshoot*: a clipped border node's
+//!   vertex sits at its nominal block's centre, up to half a block beyond the grid's edge (see
+//!   `relief_proto::tree`). Counting that horizontal distance as error makes the outline refine
+//!   like any other detail, so the terrain never visibly reaches past its edge.
 //!
 //! The pass is single-threaded and touches each node once.
 
@@ -111,32 +111,19 @@ fn build_level(geom: &TerrainGeometry, level: u8, t: &mut TreeArrays) {
             t.z[me] = z;
             t.zmin[me] = lo;
             t.zmax[me] = hi;
-            let shrink = border_shrink(geom, NodeId { level, x, y });
-            t.err[me] = error_code(deviation.max(shrink).max(nested));
+            let overshoot = border_overshoot(geom, NodeId { level, x, y });
+            t.err[me] = error_code(deviation.max(overshoot).max(nested));
         }
     }
 }
 
-/// How far, in metres, `node`'s vertex lies inside the grid border its block touches (0 for a
-/// node that touches none).
-fn border_shrink(geom: &TerrainGeometry, node: NodeId) -> f32 {
+/// How far, in metres, `node`'s vertex lies beyond the grid's east or south edge (0 inside).
+fn border_overshoot(geom: &TerrainGeometry, node: NodeId) -> f32 {
     let shape = &geom.shape;
-    let (c0, r0, c1, r1) = shape.block(node);
     let (c, r) = shape.grid_pos(node);
-    let mut s: f32 = 0.0;
-    if c0 == 0 {
-        s = s.max(c * geom.frame.dx);
-    }
-    if c1 == shape.width() - 1 {
-        s = s.max((c1 as f32 - c) * geom.frame.dx);
-    }
-    if r0 == 0 {
-        s = s.max(r * geom.frame.dy);
-    }
-    if r1 == shape.height() - 1 {
-        s = s.max((r1 as f32 - r) * geom.frame.dy);
-    }
-    s
+    let east = (c - (shape.width() - 1) as f32).max(0.0) * geom.frame.dx;
+    let south = (r - (shape.height() - 1) as f32).max(0.0) * geom.frame.dy;
+    east.max(south)
 }
 
 /// The three Haar details of `node`'s split, from its children's heights in `z`.
