@@ -1,6 +1,12 @@
 //! `relief-server`: preprocessing, LOD engines and benchmarks of the Relief terrain server.
 //!
+//! - [`dem`]: DEM readers (GeoTIFF, PNG, synthetic) and void filling.
 //! - [`store`]: the preprocessed vertex-quadtree store: build, file format, memory-mapped reader.
-//! - [`lod`]: the LOD engines (vertex stream today), camera paths and pixel-error measurement.
+//! - [`preprocess`]: a DEM in, a store out.
+//! - [`lod`]: the LOD engines (vertex stream today) and pixel-error measurement.
+//! - [`bench`]: in-process benchmarks.
+pub mod bench;
+pub mod dem;
 pub mod lod;
+pub mod preprocess;
 pub mod store;

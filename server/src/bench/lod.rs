@@ -1,0 +1,348 @@
+//! `relief-server bench lod`: the vertex stream over a camera path, in process.
+//!
+//! One session flies the path. For every pose the server updates its cut and encodes the delta as
+//! it would go on the wire; a client-side mirror decodes it, applies it, checks the digest and
+//! updates its fans incrementally. In the same run, the cut is also recomputed from scratch for
+//! the same camera, to compare update costs. On measured frames the mirror's mesh (with
+//! geomorphs applied, as a client draws it) is checked against the brute-force oracle and for
+//! cracks, and its pixel error is measured against the DEM (DESIGN.md section 7).
+
+use super::stats::{mean, median, quantile};
+use crate::dem::Dem;
+use crate::lod::measure::{Lattice, frame_errors};
+use crate::lod::session::VertexSession;
+use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
+use crate::preprocess;
+use crate::store::Store;
+use glam::Vec3;
+use relief_proto::codec;
+use relief_proto::haar::error_value;
+use relief_proto::mesh::{self, FanMesh};
+use relief_proto::mirror::Mirror;
+use relief_proto::msg::{ServerMsg, WireDelta};
+use relief_proto::path::{PATH_HZ, PathKind, camera_path};
+use relief_proto::terrain::TerrainGeometry;
+use relief_proto::tree::NodeId;
+use relief_proto::view::{Lens, ViewState, morph_alpha};
+use serde::Serialize;
+use std::time::Instant;
+
+/// What to run.
+#[derive(Clone, Debug)]
+pub struct LodBenchOptions {
+    /// Which path to fly.
+    pub path: PathKind,
+    /// LOD thresholds.
+    pub params: LodParams,
+    /// Measure pixel error on every k-th frame; `None` picks k so that at least 60 frames and
+    /// about 20 M samples are measured.
+    pub px_every: Option<usize>,
+    /// Minimum samples measured per measured frame (a stratified lattice on larger grids).
+    pub px_min_samples: u64,
+    /// Check the incremental mesh against the oracle on this many evenly spread frames.
+    pub oracle_frames: usize,
+    /// Show progress on stderr.
+    pub progress: bool,
+}
+
+impl Default for LodBenchOptions {
+    fn default() -> Self {
+        LodBenchOptions {
+            path: PathKind::Standard,
+            params: LodParams::default(),
+            px_every: None,
+            px_min_samples: 1_000_000,
+            oracle_frames: 12,
+            progress: false,
+        }
+    }
+}
+
+/// The benchmark's figures; field meanings are in the README's benchmark section.
+#[derive(Clone, Debug, Serialize)]
+pub struct LodBenchReport {
+    pub dem: String,
+    pub width: u32,
+    pub height: u32,
+    pub path: String,
+    pub frames: usize,
+    pub tau_px: f32,
+    pub triangles_median: f64,
+    pub triangles_max: f64,
+    pub full_res_triangles: u64,
+    pub px_error_p99_max: f64,
+    pub px_error_p99_median: f64,
+    pub px_error_max: f64,
+    pub px_error_frames: usize,
+    pub px_error_samples_per_frame: f64,
+    pub px_error_uncovered_fraction: f64,
+    pub cracks: u64,
+    pub folds: u64,
+    pub oracle_checks: usize,
+    pub oracle_mismatches: u64,
+    pub desyncs: u64,
+    pub update_us_median: f64,
+    pub update_us_p99: f64,
+    pub scratch_us_median: f64,
+    pub client_us_median: f64,
+    pub client_us_p99: f64,
+    pub paper_pass_us_median: f64,
+    pub paper_pass_mismatches: u64,
+    pub nodes_visited_median: f64,
+    pub paper_pass_visited_median: f64,
+    pub active_nodes_median: f64,
+    pub splits_total: u64,
+    pub merges_total: u64,
+    pub split_bytes_mean: f64,
+    pub initial_delta_bytes: u64,
+    pub delta_bytes_per_s_mean: f64,
+    pub session_bytes: f64,
+    pub session_bytes_per_active_node: f64,
+    pub build_s: f64,
+    pub build_samples_per_s: f64,
+    pub store_bytes: u64,
+}
+
+/// Runs the benchmark on `dem`, building its store in a temporary directory.
+pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> {
+    let dir = tempfile::tempdir()?;
+    let store_path = dir.path().join("bench.relief");
+    let built = preprocess::build_store(dem, &store_path, None, opts.progress)?;
+    let store = Store::open(&store_path)?;
+    let engine = VertexEngine::new(&store);
+    let geom = store.geometry();
+    let shape = &geom.shape;
+    let (w, h) = (shape.width(), shape.height());
+    let lens = Lens::STANDARD;
+    let p = opts.params;
+
+    let ground = |x: f32, y: f32| {
+        let (c, r) = geom.frame.to_grid(x, y);
+        let c = (c.round().max(0.0) as u32).min(w - 1);
+        let r = (r.round().max(0.0) as u32).min(h - 1);
+        dem.heights[(r * w + c) as usize]
+    };
+    let extent = (
+        (w - 1) as f32 * geom.frame.dx,
+        (h - 1) as f32 * geom.frame.dy,
+    );
+    let cams = camera_path(opts.path, extent.0, extent.1, ground);
+    let frames = cams.len();
+    let px_every = opts.px_every.unwrap_or_else(|| {
+        let lat = Lattice::for_grid(w, h, opts.px_min_samples, 0);
+        let per_frame = (w as u64 / lat.stride as u64) * (h as u64 / lat.stride as u64);
+        let budget = (20_000_000 / per_frame.max(1)).max(60) as usize;
+        (frames / budget.min(frames)).clamp(1, frames / 60)
+    });
+    let oracle_every = (frames / opts.oracle_frames.max(1)).max(1);
+
+    // Session start: the initial cut, sent as one delta of splits.
+    let root_z = store.z()[0];
+    let mut mirror = Mirror::new(geom, root_z);
+    let view0 = ViewState::new(&cams[0], &lens);
+    let mut session = VertexSession::new(&engine, &view0, &p);
+    // The paper's full top-down pass, run beside the session for its cost (same decisions).
+    let mut paper_cut = session.cut().clone();
+    let first = engine.full_delta(session.cut(), 0);
+    let first_bytes = wire(&first, geom);
+    let decoded = unwire(&first_bytes, geom)?;
+    mirror.apply(geom, &decoded, |_, _| {})?;
+    let mut mesh = FanMesh::new(shape, mirror.cut());
+
+    let mut r = Accum::default();
+    r.bytes += first_bytes.len() as u64;
+    r.splits += first.splits.len() as u64;
+    let bar = super::progress_bar(opts.progress, frames as u64, "flying");
+    for (f, cam) in cams.iter().enumerate().skip(1) {
+        let view = ViewState::new(cam, &lens);
+        let mut st = UpdateStats::default();
+        let t0 = Instant::now();
+        let delta = session.update(&engine, &view, &p, f as u64, &mut st);
+        let bytes = wire(&delta, geom);
+        r.update_us.push(t0.elapsed().as_secs_f64() * 1e6);
+        r.visited.push(st.visited as f64);
+
+        let mut pst = UpdateStats::default();
+        let t0 = Instant::now();
+        let paper = engine.update(&mut paper_cut, &view, &p, f as u64, &mut pst);
+        r.paper_us.push(t0.elapsed().as_secs_f64() * 1e6);
+        r.paper_visited.push(pst.visited as f64);
+        if paper.digest != delta.digest {
+            r.paper_mismatches += 1;
+        }
+
+        let t0 = Instant::now();
+        let scratch = engine.initial_cut(&view, &p, &mut UpdateStats::default());
+        r.scratch_us.push(t0.elapsed().as_secs_f64() * 1e6);
+        std::hint::black_box(scratch.digest());
+
+        let t0 = Instant::now();
+        let decoded = unwire(&bytes, geom)?;
+        match mirror.apply(geom, &decoded, |c, n| mesh.update_around(shape, c, n)) {
+            Ok(()) => {}
+            Err(e) => {
+                r.desyncs += 1;
+                tracing::warn!("frame {f}: {e}");
+            }
+        }
+        r.client_us.push(t0.elapsed().as_secs_f64() * 1e6);
+        r.path_bytes += bytes.len() as u64;
+        r.bytes += bytes.len() as u64;
+        r.splits += delta.splits.len() as u64;
+        r.merges += delta.merges.len() as u64;
+        r.active.push(session.cut().active_count() as f64);
+        r.triangles.push(mesh.triangle_count() as f64);
+        r.session_bytes.push(session.memory_bytes() as f64);
+
+        if f % oracle_every == 0 {
+            r.oracle_checks += 1;
+            let oracle = mesh::oracle(shape, mirror.cut());
+            if mesh.triangles() != oracle {
+                r.oracle_mismatches += 1;
+            }
+        }
+        if f % px_every == 0 {
+            let tris = drawn_triangles(&mesh, &mirror, geom, &view, &p);
+            let rep = mesh::check_mesh(shape, |n| shape.grid_pos(n), &mesh.triangles());
+            r.cracks += rep.cracks as u64;
+            r.folds += rep.folds as u64;
+            let lat = Lattice::for_grid(w, h, opts.px_min_samples, f);
+            let fe = frame_errors(
+                geom,
+                &dem.heights,
+                |c, rr| store.is_void(c, rr),
+                &tris,
+                cam,
+                &lens,
+                lat,
+            );
+            let errs: Vec<f64> = fe.errors.iter().map(|&v| v as f64).collect();
+            r.px_p99.push(quantile(&errs, 0.99));
+            r.px_max = r.px_max.max(errs.iter().copied().fold(0.0, f64::max));
+            r.px_samples.push((errs.len() as u64 + fe.uncovered) as f64);
+            r.uncovered += fe.uncovered;
+            r.covered += errs.len() as u64;
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let seconds = (frames - 1) as f64 / PATH_HZ as f64;
+    Ok(LodBenchReport {
+        dem: dem.source.clone(),
+        width: w,
+        height: h,
+        path: format!("{:?}", opts.path).to_lowercase(),
+        frames,
+        tau_px: p.tau,
+        triangles_median: median(&r.triangles),
+        triangles_max: quantile(&r.triangles, 1.0),
+        full_res_triangles: 2 * (w as u64 - 1) * (h as u64 - 1),
+        px_error_p99_max: quantile(&r.px_p99, 1.0),
+        px_error_p99_median: median(&r.px_p99),
+        px_error_max: r.px_max,
+        px_error_frames: r.px_p99.len(),
+        px_error_samples_per_frame: mean(&r.px_samples),
+        px_error_uncovered_fraction: r.uncovered as f64 / (r.uncovered + r.covered).max(1) as f64,
+        cracks: r.cracks,
+        folds: r.folds,
+        oracle_checks: r.oracle_checks,
+        oracle_mismatches: r.oracle_mismatches,
+        desyncs: r.desyncs,
+        update_us_median: median(&r.update_us),
+        update_us_p99: quantile(&r.update_us, 0.99),
+        scratch_us_median: median(&r.scratch_us),
+        client_us_median: median(&r.client_us),
+        client_us_p99: quantile(&r.client_us, 0.99),
+        paper_pass_us_median: median(&r.paper_us),
+        paper_pass_mismatches: r.paper_mismatches,
+        nodes_visited_median: median(&r.visited),
+        paper_pass_visited_median: median(&r.paper_visited),
+        active_nodes_median: median(&r.active),
+        splits_total: r.splits,
+        merges_total: r.merges,
+        split_bytes_mean: r.bytes as f64 / r.splits.max(1) as f64,
+        initial_delta_bytes: first_bytes.len() as u64,
+        delta_bytes_per_s_mean: r.path_bytes as f64 / seconds,
+        session_bytes: median(&r.session_bytes),
+        session_bytes_per_active_node: median(
+            &r.session_bytes
+                .iter()
+                .zip(&r.active)
+                .map(|(b, a)| b / a)
+                .collect::<Vec<_>>(),
+        ),
+        build_s: built.tree_s,
+        build_samples_per_s: (w as f64 * h as f64) / built.tree_s.max(1e-9),
+        store_bytes: built.bytes,
+    })
+}
+
+/// Per-frame series gathered during the run.
+#[derive(Default)]
+struct Accum {
+    update_us: Vec<f64>,
+    scratch_us: Vec<f64>,
+    paper_us: Vec<f64>,
+    paper_visited: Vec<f64>,
+    paper_mismatches: u64,
+    client_us: Vec<f64>,
+    visited: Vec<f64>,
+    active: Vec<f64>,
+    triangles: Vec<f64>,
+    px_p99: Vec<f64>,
+    px_samples: Vec<f64>,
+    px_max: f64,
+    uncovered: u64,
+    covered: u64,
+    bytes: u64,
+    path_bytes: u64,
+    splits: u64,
+    merges: u64,
+    desyncs: u64,
+    cracks: u64,
+    folds: u64,
+    oracle_checks: usize,
+    oracle_mismatches: u64,
+    session_bytes: Vec<f64>,
+}
+
+fn wire(delta: &relief_proto::delta::Delta, geom: &TerrainGeometry) -> Vec<u8> {
+    codec::encode(&ServerMsg::Delta(WireDelta::pack(
+        delta,
+        &geom.shape,
+        geom.z_quantum,
+    )))
+}
+
+fn unwire(bytes: &[u8], geom: &TerrainGeometry) -> anyhow::Result<relief_proto::delta::Delta> {
+    let ServerMsg::Delta(wd) = codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT)?;
+    Ok(wd.unpack(&geom.shape, geom.z_quantum)?)
+}
+
+/// The mirror's triangles in world space as a client draws them: every active node whose parent
+/// is still within its geomorph range slides towards the parent (paper 000, section 3.6).
+fn drawn_triangles(
+    mesh: &FanMesh,
+    mirror: &Mirror,
+    geom: &TerrainGeometry,
+    view: &ViewState,
+    p: &LodParams,
+) -> Vec<[Vec3; 3]> {
+    let pos = |n: NodeId| -> Vec3 {
+        let Some(d) = mirror.node(geom, n) else {
+            return Vec3::ZERO;
+        };
+        let own = geom.world_pos(n, d.z);
+        let Some(parent) = n.parent() else {
+            return own;
+        };
+        let Some(pd) = mirror.node(geom, parent) else {
+            return own;
+        };
+        let b = geom.node_box(parent, pd.z, pd.err_code);
+        let e = view.screen_error(&b, error_value(pd.err_code));
+        let a = morph_alpha(e, p.tau, p.lambda);
+        own * a + geom.world_pos(parent, pd.z) * (1.0 - a)
+    };
+    mesh.triangles().iter().map(|t| t.0.map(pos)).collect()
+}

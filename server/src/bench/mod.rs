@@ -1,0 +1,21 @@
+//! In-process benchmarks: figures printed by `relief-server bench`, never asserted by tests.
+//!
+//! - [`lod`]: the vertex stream over the standard or stress path.
+//! - [`stats`]: medians and quantiles.
+pub mod lod;
+pub mod stats;
+
+/// A progress bar on stderr when `show`, hidden otherwise.
+pub fn progress_bar(show: bool, len: u64, what: &str) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    let style =
+        indicatif::ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} ({eta} left)")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> ");
+    bar.set_style(style);
+    bar.set_message(what.to_string());
+    bar
+}
