@@ -7,11 +7,13 @@
 //! nodes tile the grid. Storing the interior set alone costs about a third of the active count.
 //!
 //! Both ends keep one: the server for each session, the client as the mirror it rebuilds from
-//! deltas. The [`Cut::digest`] is an order-independent hash of the active set, kept up to date on
+//! deltas. Each interior node may carry a small value `V` (the server keeps its next check time
+//! there); the client's cut carries none. Nodes are keyed by their dense index as a `u32`, which
+//! [`TreeShape`] guarantees to fit. The [`Cut::digest`] is an order-independent hash of the active set, kept up to date on
 //! every split and merge, that each delta carries so that a desync is detected, never silent.
 
 use crate::tree::{NodeId, TreeShape};
-use rustc_hash::FxHashSet;
+use rustc_hash::FxHashMap;
 
 /// A split or merge that the current cut does not allow.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
@@ -29,9 +31,9 @@ pub enum CutError {
 
 /// The set of interior nodes, plus the digest of the active set it implies.
 #[derive(Clone, Debug, Default)]
-pub struct Cut {
-    /// Dense indices ([`TreeShape::index`]) of the interior (split) nodes.
-    interior: FxHashSet<u64>,
+pub struct Cut<V = ()> {
+    /// Dense indices ([`TreeShape::index`]) of the interior (split) nodes, with their values.
+    interior: FxHashMap<u32, V>,
     /// Sum of [`node_hash`] over the active nodes, wrapping; see [`Cut::digest`].
     digest: u64,
     /// Number of active nodes, kept so that sizes are reported without a walk.
@@ -47,13 +49,51 @@ pub fn node_hash(index: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-impl Cut {
+impl Cut<()> {
     /// The coarsest cut: the root alone is active.
     pub fn root(shape: &TreeShape) -> Cut {
+        Cut::root_with(shape)
+    }
+}
+
+fn key(shape: &TreeShape, node: NodeId) -> u32 {
+    // TreeShape keeps every dense index below 2^32.
+    shape.index(node) as u32
+}
+
+impl<V: Copy + Default> Cut<V> {
+    /// The coarsest cut, for any value type.
+    pub fn root_with(shape: &TreeShape) -> Cut<V> {
         Cut {
-            interior: FxHashSet::default(),
+            interior: FxHashMap::default(),
             digest: node_hash(shape.index(NodeId::ROOT)),
             active: 1,
+        }
+    }
+
+    /// The value of interior node `node`, if it is interior.
+    pub fn value(&self, shape: &TreeShape, node: NodeId) -> Option<V> {
+        self.interior.get(&key(shape, node)).copied()
+    }
+
+    /// The value of the interior node with dense index `index`, if it is interior.
+    pub fn value_at(&self, index: u32) -> Option<V> {
+        self.interior.get(&index).copied()
+    }
+
+    /// Sets the value of interior node `node`; no effect on other nodes.
+    pub fn set_value(&mut self, shape: &TreeShape, node: NodeId, value: V) {
+        if let Some(v) = self.interior.get_mut(&key(shape, node)) {
+            *v = value;
+        }
+    }
+
+    /// The same cut with every value reset to `W::default()`.
+    pub fn with_values<W: Copy + Default>(&self) -> Cut<W> {
+        Cut {
+            interior: self.interior.keys().map(|&k| (k, W::default())).collect(),
+            digest: self.digest,
+            active: self.active,
         }
     }
 
@@ -74,12 +114,12 @@ impl Cut {
 
     /// Bytes of memory the interior set holds (table slots plus control bytes).
     pub fn memory_bytes(&self) -> usize {
-        self.interior.capacity() * (std::mem::size_of::<u64>() + 1)
+        self.interior.capacity() * (std::mem::size_of::<(u32, V)>() + 1)
     }
 
     /// Whether `node` is interior (split).
     pub fn is_interior(&self, shape: &TreeShape, node: NodeId) -> bool {
-        self.interior.contains(&shape.index(node))
+        self.interior.contains_key(&key(shape, node))
     }
 
     /// Whether `node` is active: its parent is interior (or it is the root) and it is not.
@@ -89,17 +129,24 @@ impl Cut {
             && node.parent().is_none_or(|p| self.is_interior(shape, p))
     }
 
-    /// The active node whose block holds sample `(col, row)`: walks down from the root.
+    /// The active node whose block holds sample `(col, row)`.
+    ///
+    /// Along a sample's root path the interior nodes form a prefix (an interior node's parent is
+    /// interior), so the active node is the first non-interior one: a binary search over the
+    /// levels, about log2(depth) lookups.
     pub fn active_ancestor(&self, shape: &TreeShape, col: u32, row: u32) -> NodeId {
         let leaf = shape.leaf(col, row);
-        let mut level = 0;
-        loop {
-            let node = leaf.ancestor_at(level);
-            if level == shape.depth() || !self.is_interior(shape, node) {
-                return node;
+        // Invariant: levels < lo are interior; level hi is not (leaves never are).
+        let (mut lo, mut hi) = (0u8, shape.depth());
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if self.is_interior(shape, leaf.ancestor_at(mid)) {
+                lo = mid + 1;
+            } else {
+                hi = mid;
             }
-            level += 1;
         }
+        leaf.ancestor_at(lo)
     }
 
     /// Splits active node `node` into its children.
@@ -111,7 +158,7 @@ impl Cut {
             return Err(CutError::NotSplittable(node));
         }
         let index = shape.index(node);
-        self.interior.insert(index);
+        self.interior.insert(index as u32, V::default());
         self.digest = self.digest.wrapping_sub(node_hash(index));
         self.active -= 1;
         for (_, c) in shape.children(node) {
@@ -134,7 +181,7 @@ impl Cut {
             return Err(CutError::NotMergeable(node));
         }
         let index = shape.index(node);
-        self.interior.remove(&index);
+        self.interior.remove(&(index as u32));
         self.digest = self.digest.wrapping_add(node_hash(index));
         self.active += 1;
         for (_, c) in shape.children(node) {
@@ -146,7 +193,7 @@ impl Cut {
 
     /// The interior nodes' dense indices, in no particular order.
     pub fn interior_indices(&self) -> impl Iterator<Item = u64> + '_ {
-        self.interior.iter().copied()
+        self.interior.keys().map(|&k| k as u64)
     }
 
     /// All active nodes, found by walking down from the root (for tests and snapshots).

@@ -16,8 +16,9 @@
 //! (column 0, row H-1), so that every coordinate of the terrain is non-negative. Row 0 is north:
 //! sample `(col, row)` lies at `x = col * dx`, `y = (H - 1 - row) * dy`.
 
-/// The deepest tree the format allows: 2^20 samples a side is far beyond any size limit.
-pub const MAX_DEPTH: u8 = 20;
+/// The deepest tree the format allows: 32768 samples a side, so that every dense index fits in
+/// 32 bits (the cut keys nodes by `u32`).
+pub const MAX_DEPTH: u8 = 15;
 
 /// A node of the vertex quadtree: its level (0 = root) and its position within that level.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -90,7 +91,7 @@ pub enum ShapeError {
     #[error("grid of {0}x{1} samples is too small: at least 2x2 is needed")]
     TooSmall(u32, u32),
     /// More samples than the addressing supports.
-    #[error("grid of {0}x{1} samples is too large: at most 2^20 a side")]
+    #[error("grid of {0}x{1} samples is too large: at most 32768 a side")]
     TooLarge(u32, u32),
 }
 

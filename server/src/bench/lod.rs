@@ -142,8 +142,8 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
     let view0 = ViewState::new(&cams[0], &lens);
     let mut session = VertexSession::new(&engine, &view0, &p);
     // The paper's full top-down pass, run beside the session for its cost (same decisions).
-    let mut paper_cut = session.cut().clone();
-    let first = engine.full_delta(session.cut(), 0);
+    let mut paper_cut = session.cut();
+    let first = engine.full_delta(&paper_cut, 0);
     let first_bytes = wire(&first, geom);
     let decoded = unwire(&first_bytes, geom)?;
     mirror.apply(geom, &decoded, |_, _| {})?;
@@ -190,18 +190,18 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         r.bytes += bytes.len() as u64;
         r.splits += delta.splits.len() as u64;
         r.merges += delta.merges.len() as u64;
-        r.active.push(session.cut().active_count() as f64);
+        r.active.push(session.active_count() as f64);
         r.triangles.push(mesh.triangle_count() as f64);
         r.session_bytes.push(session.memory_bytes() as f64);
 
-        if f % oracle_every == 0 {
+        if (f - 1) % oracle_every == 0 {
             r.oracle_checks += 1;
             let oracle = mesh::oracle(shape, mirror.cut());
             if mesh.triangles() != oracle {
                 r.oracle_mismatches += 1;
             }
         }
-        if f % px_every == 0 {
+        if (f - 1) % px_every == 0 {
             let tris = drawn_triangles(&mesh, &mirror, geom, &view, &p);
             let rep = mesh::check_mesh(shape, |n| shape.grid_pos(n), &mesh.triangles());
             r.cracks += rep.cracks as u64;

@@ -18,8 +18,9 @@
 //! one level per update. Splitting a child files the child's own new group as due at the next
 //! update; a merge files the grandparent's group as due at the next update.
 //!
-//! State per session: the cut's interior set, each interior node's key, and the band queues; all
-//! proportional to the number of interior nodes (about a third of the active ones).
+//! Each band's queue is a timing wheel of buckets of node indices. State per session: the cut's
+//! interior set, whose value per node is its packed due key and band, and the wheels' entries;
+//! all proportional to the number of interior nodes (about a third of the active ones).
 
 use super::vertex::{LodParams, UpdateStats, VertexEngine};
 use glam::Vec3;
@@ -27,45 +28,71 @@ use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{BoxView, ViewState};
-use rustc_hash::FxHashMap;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 
 /// Distance bands: band `b` holds groups whose boxes lie within `2^b` metres of the eye.
 const BANDS: usize = 48;
+/// Buckets per band's wheel; a bucket spans `2^b / BUCKETS_PER_DISTANCE` metres of odometer.
+const WHEEL: u64 = 64;
+const BUCKETS_PER_DISTANCE: f64 = 16.0;
 /// Safety factor on every slack, against rounding in the bounds.
 const SLACK_SAFETY: f64 = 0.98;
 /// A rotation moves any vector by at most this factor times the largest move of the basis vectors.
 const ROTATION_FACTOR: f64 = 1.25;
 
+/// An interior node's schedule, packed in 32 bits: the due key (f32, rounded down to a multiple
+/// of 64 units in the last place) with the band in the low 6 bits.
+fn pack(key: f64, band: usize) -> u32 {
+    let k = key.max(0.0) as f32;
+    let mut bits = k.to_bits();
+    if k as f64 > key.max(0.0) {
+        bits = bits.saturating_sub(1);
+    }
+    (bits & !63) | band as u32
+}
+
+fn unpack(v: u32) -> (f64, usize) {
+    (f32::from_bits(v & !63) as f64, (v & 63) as usize)
+}
+
+/// One band's timing wheel: node indices bucketed by due odometer reading.
+#[derive(Default)]
+struct Wheel {
+    /// `WHEEL` buckets; bucket `i` holds keys in `[(cursor - cursor % WHEEL + i) * width, ...)`.
+    buckets: Vec<Vec<u32>>,
+    /// Keys beyond the wheel's horizon, filed again each time the wheel turns.
+    overflow: Vec<u32>,
+    /// The bucket (absolute index) drained last.
+    cursor: u64,
+}
+
 /// A session's cut plus the schedule of its next checks.
 pub struct VertexSession {
-    /// The cut.
-    cut: Cut,
-    /// Each interior node's due key and band, by dense index; a queued entry that does not match
-    /// is stale and skipped.
-    keys: FxHashMap<u32, (f32, u8)>,
-    /// Per band: queued (key bits, node) pairs, earliest first.
-    queues: Vec<BinaryHeap<Reverse<(u32, u32)>>>,
+    /// The cut; each interior node carries its packed schedule.
+    cut: Cut<u32>,
+    /// One wheel per distance band.
+    wheels: Vec<Wheel>,
     /// Per band: the odometer, metres of camera-relative motion since the session began.
     odometers: Vec<f64>,
     /// The previous update's eye and view basis, to measure the camera's motion.
     previous: Option<(Vec3, [Vec3; 3])>,
 }
 
+fn width(band: usize) -> f64 {
+    (band as f64).exp2() / BUCKETS_PER_DISTANCE
+}
+
 impl VertexSession {
     /// A session whose initial cut is computed for `view` (all groups due at the first update).
     pub fn new(engine: &VertexEngine<'_>, view: &ViewState, p: &LodParams) -> VertexSession {
         let cut = engine.initial_cut(view, p, &mut UpdateStats::default());
-        VertexSession::from_cut(engine, cut)
+        VertexSession::from_cut(engine, &cut)
     }
 
     /// A session continuing from `cut` (all groups due at the first update).
-    pub fn from_cut(engine: &VertexEngine<'_>, cut: Cut) -> VertexSession {
+    pub fn from_cut(engine: &VertexEngine<'_>, cut: &Cut) -> VertexSession {
         let mut s = VertexSession {
-            cut,
-            keys: FxHashMap::default(),
-            queues: (0..BANDS).map(|_| BinaryHeap::new()).collect(),
+            cut: cut.with_values(),
+            wheels: (0..BANDS).map(|_| Wheel::default()).collect(),
             odometers: vec![0.0; BANDS],
             previous: None,
         };
@@ -79,27 +106,54 @@ impl VertexSession {
     }
 
     /// The current cut.
-    pub fn cut(&self) -> &Cut {
-        &self.cut
+    pub fn cut(&self) -> Cut {
+        self.cut.with_values()
+    }
+
+    /// The current cut's digest.
+    pub fn digest(&self) -> u64 {
+        self.cut.digest()
+    }
+
+    /// Number of active nodes.
+    pub fn active_count(&self) -> u64 {
+        self.cut.active_count()
     }
 
     /// Bytes of memory the session's state holds.
     pub fn memory_bytes(&self) -> usize {
-        let queued: usize = self.queues.iter().map(|q| q.capacity() * 8).sum();
-        self.cut.memory_bytes() + self.keys.capacity() * 13 + queued + std::mem::size_of::<Self>()
+        let queued: usize = self
+            .wheels
+            .iter()
+            .map(|w| {
+                (w.buckets.iter().map(Vec::capacity).sum::<usize>() + w.overflow.capacity()) * 4
+                    + w.buckets.capacity() * std::mem::size_of::<Vec<u32>>()
+            })
+            .sum();
+        self.cut.memory_bytes() + queued + std::mem::size_of::<Self>()
     }
 
     /// Files `node`'s group with `slack` metres of motion before it is due, in `band`.
     fn file(&mut self, engine: &VertexEngine<'_>, node: NodeId, slack: f64, band: usize) {
+        let packed = pack(self.odometers[band] + slack, band);
+        self.cut.set_value(&engine.geometry().shape, node, packed);
         let idx = engine.geometry().shape.index(node) as u32;
-        let key = self.odometers[band] + slack;
-        let mut k = key as f32;
-        if k as f64 > key {
-            k = k.next_down();
+        self.enqueue(idx, packed);
+    }
+
+    /// Puts `idx` in the bucket of its packed key.
+    fn enqueue(&mut self, idx: u32, packed: u32) {
+        let (key, band) = unpack(packed);
+        let wheel = &mut self.wheels[band];
+        if wheel.buckets.is_empty() {
+            wheel.buckets = vec![Vec::new(); WHEEL as usize];
         }
-        let k = if k > 0.0 { k } else { 0.0 };
-        self.keys.insert(idx, (k, band as u8));
-        self.queues[band].push(Reverse((k.to_bits(), idx)));
+        let at = ((key / width(band)) as u64).max(wheel.cursor);
+        if at - wheel.cursor < WHEEL {
+            wheel.buckets[(at % WHEEL) as usize].push(idx);
+        } else {
+            wheel.overflow.push(idx);
+        }
     }
 
     /// Advances the odometers by the camera's motion since the last update.
@@ -119,6 +173,49 @@ impl VertexSession {
             }
         }
         self.previous = Some((eye, basis));
+    }
+
+    /// Drains every band's due buckets: returns the due interior nodes' indices.
+    fn due(&mut self) -> Vec<u32> {
+        let mut due = Vec::new();
+        let mut later = Vec::new();
+        for band in 0..BANDS {
+            let now = self.odometers[band];
+            let wheel = &mut self.wheels[band];
+            if wheel.buckets.is_empty() {
+                continue;
+            }
+            let target = (now / width(band)) as u64;
+            let first = wheel.cursor;
+            let last = target.min(first + WHEEL - 1);
+            for at in first..=last {
+                let bucket = std::mem::take(&mut wheel.buckets[(at % WHEEL) as usize]);
+                later.extend(bucket.into_iter().map(|i| (i, band)));
+            }
+            if target / WHEEL != first / WHEEL || target >= first + WHEEL {
+                later.extend(wheel.overflow.drain(..).map(|i| (i, band)));
+            }
+            wheel.cursor = target.max(first);
+            for (idx, b) in later.drain(..) {
+                // Stale entries (merged nodes, re-filed groups in another band) are dropped.
+                let Some(packed) = self.cut.value_at(idx) else {
+                    continue;
+                };
+                let (key, kb) = unpack(packed);
+                if kb != b {
+                    continue;
+                }
+                if key <= now {
+                    due.push(idx);
+                } else {
+                    self.enqueue(idx, packed);
+                }
+            }
+        }
+        // Shallowest first (dense indices grow with depth), as the paper's top-down pass.
+        due.sort_unstable();
+        due.dedup();
+        due
     }
 
     /// One update for `view`: the same delta as the paper's full top-down pass.
@@ -146,23 +243,7 @@ impl VertexSession {
             delta.digest = self.cut.digest();
             return delta;
         }
-        let mut due = Vec::new();
-        for (b, q) in self.queues.iter_mut().enumerate() {
-            let now = self.odometers[b];
-            while let Some(&Reverse((k, idx))) = q.peek() {
-                if f32::from_bits(k) as f64 > now {
-                    break;
-                }
-                q.pop();
-                if self.keys.get(&idx) == Some(&(f32::from_bits(k), b as u8)) {
-                    due.push(idx);
-                }
-            }
-        }
-        // Shallowest first (dense indices grow with depth), as the paper's top-down pass.
-        due.sort_unstable();
-        due.dedup();
-        for idx in due {
+        for idx in self.due() {
             let Some(node) = shape.node(idx as u64) else {
                 continue;
             };
@@ -198,7 +279,6 @@ impl VertexSession {
             let e = view.error_of(&bv, err);
             if e < p.tau * p.merge_ratio {
                 let _ = self.cut.merge(shape, node);
-                self.keys.remove(&(shape.index(node) as u32));
                 delta.merges.push(node);
                 if let Some(parent) = node.parent() {
                     self.file(engine, parent, 0.0, 0);

@@ -118,7 +118,7 @@ impl<'s> VertexEngine<'s> {
 
     /// The splits that build `cut` from the root cut, parents first: the delta a new session
     /// receives after its initial cut.
-    pub fn full_delta(&self, cut: &Cut, seq: u64) -> Delta {
+    pub fn full_delta<V: Copy + Default>(&self, cut: &Cut<V>, seq: u64) -> Delta {
         let shape = &self.geom.shape;
         let mut interior: Vec<u64> = cut.interior_indices().collect();
         interior.sort_unstable();

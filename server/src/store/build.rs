@@ -11,10 +11,11 @@
 //!   the box `z +- error` of a node holds its children's boxes. The error bounds the subtree's
 //!   heights, which is what lets one byte give both the error and the z extent of a node's box;
 //!   nested boxes make the screen error monotone, so threshold cuts are consistent;
-//! - nodes on the east and south borders also count their *overshoot*: a clipped border node's
-//!   vertex sits at its nominal block's centre, up to half a block beyond the grid's edge (see
-//!   `relief_proto::tree`). Counting that horizontal distance as error makes the outline refine
-//!   like any other detail, so the terrain never visibly reaches past its edge.
+//! - nodes on the grid's border also count their *border offset*: a border node's vertex sits half
+//!   a block inside the west or north edge, and a clipped block's nominal centre up to half a
+//!   block beyond the east or south edge (see `relief_proto::tree`). Counting that horizontal
+//!   distance as error makes the mesh's outline refine like any other detail, so it never visibly
+//!   recedes from or reaches past the grid's edge.
 //!
 //! The pass is single-threaded and touches each node once.
 
@@ -111,19 +112,34 @@ fn build_level(geom: &TerrainGeometry, level: u8, t: &mut TreeArrays) {
             t.z[me] = z;
             t.zmin[me] = lo;
             t.zmax[me] = hi;
-            let overshoot = border_overshoot(geom, NodeId { level, x, y });
-            t.err[me] = error_code(deviation.max(overshoot).max(nested));
+            let border = border_offset(geom, NodeId { level, x, y });
+            t.err[me] = error_code(deviation.max(border).max(nested));
         }
     }
 }
 
-/// How far, in metres, `node`'s vertex lies beyond the grid's east or south edge (0 inside).
-fn border_overshoot(geom: &TerrainGeometry, node: NodeId) -> f32 {
+/// How far, in metres, `node`'s vertex lies off the grid edges its block touches: beyond the
+/// east or south edge (a clipped block's nominal centre), or inside the west or north edge (half
+/// a block in). Either moves the mesh's outline away from the grid's edge by that much.
+fn border_offset(geom: &TerrainGeometry, node: NodeId) -> f32 {
     let shape = &geom.shape;
+    let (c0, r0, c1, r1) = shape.block(node);
     let (c, r) = shape.grid_pos(node);
-    let east = (c - (shape.width() - 1) as f32).max(0.0) * geom.frame.dx;
-    let south = (r - (shape.height() - 1) as f32).max(0.0) * geom.frame.dy;
-    east.max(south)
+    let (dx, dy) = (geom.frame.dx, geom.frame.dy);
+    let mut off: f32 = 0.0;
+    if c0 == 0 {
+        off = off.max(c * dx);
+    }
+    if r0 == 0 {
+        off = off.max(r * dy);
+    }
+    if c1 == shape.width() - 1 {
+        off = off.max((c - c1 as f32).abs() * dx);
+    }
+    if r1 == shape.height() - 1 {
+        off = off.max((r - r1 as f32).abs() * dy);
+    }
+    off
 }
 
 /// The three Haar details of `node`'s split, from its children's heights in `z`.
