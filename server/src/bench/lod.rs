@@ -218,6 +218,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
             );
             let errs: Vec<f64> = fe.errors.iter().map(|&v| v as f64).collect();
             r.px_p99.push(quantile(&errs, 0.99));
+            if std::env::var("PXDEBUG").is_ok() { eprintln!("frame {f} p99 {:.3} max {:.2} n {}", quantile(&errs, 0.99), errs.iter().copied().fold(0.0, f64::max), errs.len()); }
             r.px_max = r.px_max.max(errs.iter().copied().fold(0.0, f64::max));
             r.px_samples.push((errs.len() as u64 + fe.uncovered) as f64);
             r.uncovered += fe.uncovered;
@@ -341,7 +342,7 @@ fn drawn_triangles(
         };
         let b = geom.node_box(parent, pd.z, pd.err_code);
         let e = view.screen_error(&b, error_value(pd.err_code));
-        let a = morph_alpha(e, p.tau, p.lambda);
+        let a = if std::env::var("NOMORPH").is_ok() { 1.0 } else { morph_alpha(e, p.tau, p.lambda) };
         own * a + geom.world_pos(parent, pd.z) * (1.0 - a)
     };
     mesh.triangles().iter().map(|t| t.0.map(pos)).collect()

@@ -14,9 +14,9 @@
 //! band of its distance, and each band keeps an odometer that advances by the eye's travel plus
 //! the band's distance times the rotation; a group is due when its band's odometer passes its key.
 //!
-//! Due groups are processed shallowest first, so that, as in the paper's pass, a node moves at most
-//! one level per update. Splitting a child files the child's own new group as due at the next
-//! update; a merge files the grandparent's group as due at the next update.
+//! Due groups are processed shallowest first, as in the full pass. Splitting a child examines the
+//! child's own new group at once (refinement goes as deep as the pose needs); a merge files the
+//! grandparent's group as due at the next update (coarsening moves one level per update).
 //!
 //! Each band's queue is a timing wheel of buckets of node indices. State per session: the cut's
 //! interior set, whose value per node is its packed due key and band, and the wheels' entries;
@@ -296,7 +296,8 @@ impl VertexSession {
             if view.error_of(&cv, cerr) > p.tau {
                 let _ = self.cut.split(shape, c);
                 delta.splits.push(engine.split_payload(c));
-                self.file(engine, c, 0.0, 0);
+                // Refine as deep as this pose needs, as the full pass does.
+                self.process(engine, view, p, c, delta, stats);
             } else {
                 slack = slack.min(split_slack(view, &cv, cerr, p.tau));
             }

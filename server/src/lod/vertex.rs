@@ -10,9 +10,15 @@
 //! **Update.** [`VertexEngine::update`] is the paper's `RecursiveDetermineNullSubTrees`: it walks
 //! the interior nodes from the root; an interior node whose children are all active merges when
 //! its error falls below `tau * merge_ratio`; an active node splits when its error exceeds `tau`.
-//! New children are not examined in the same update, so a node moves at most one level per
-//! update. The gap between the merge and split thresholds is the hysteresis that keeps a camera
-//! at rest (or jittering) from producing anything but empty deltas.
+//! The gap between the merge and split thresholds is the hysteresis that keeps a camera at rest
+//! (or jittering) from producing anything but empty deltas.
+//!
+//! One departure from the paper: the paper moves a node at most one level per update, also when
+//! refining. At 10 poses a second along the standard path that lag alone pushed the worst frame's
+//! 99th-percentile pixel error from 0.80 px (the cut computed from scratch) to 1.53 px on
+//! fuji_srtm3 at tau = 1. So new children are examined in the same pass and refinement goes as
+//! deep as the pose needs; coarsening still moves one level per update, which costs triangles
+//! for a few updates but never accuracy.
 
 use crate::store::Store;
 use crate::store::build::split_details;
@@ -166,6 +172,7 @@ impl<'s> VertexEngine<'s> {
                 if self.screen_error(view, n) > p.tau {
                     let _ = cut.split(shape, n);
                     delta.splits.push(self.split_payload(n));
+                    stack.extend(shape.children(n).map(|(_, c)| c));
                 }
             }
         }
