@@ -6,16 +6,20 @@
 //! [`crate::haar`]) and the node's one-byte static-error code (its screen error drives the
 //! children's geomorph and defines its bounding box, see [`crate::node`]).
 //!
-//! **Body layout** (a bit stream, most significant bit first):
-//! 1. `n_merges`, `n_splits`: order-0 Exp-Golomb.
-//! 2. Four 4-bit code orders: merge gaps, split gaps, details, error residuals.
-//! 3. Merges, by increasing dense index: the gap to the previous index (minus one).
-//! 4. Splits, by increasing dense index (so parents come before children): the gap, then the three
-//!    details (zigzag, signed Exp-Golomb), then the error code's residual against a prediction
-//!    both ends compute from the details alone: the code of the largest child-to-parent offset,
-//!    which the node's error can never be below.
+//! **Body layout** (a bit stream, most significant bit first; "EG(k)" is an order-k Exp-Golomb
+//! code, signed values zigzag-mapped first):
+//! 1. `n_merges`, `n_splits`: EG(0).
+//! 2. Three 4-bit code orders: merge positions, split positions, error residuals.
+//! 3. Merges, then splits, each sorted by level and then by Morton (Z-order) code within the level,
+//!    so that parents come before children and nearby nodes have nearby codes. Each node is its
+//!    level step from the previous node, EG(0), then its Morton code: if the level is unchanged,
+//!    as the gap to the previous code minus one, else as is, EG(order).
+//! 4. For each level that has splits, in order, a 4-bit order for that level's details.
+//! 5. Per split, in the same order: its three details, EG(level's order), then the error code's
+//!    residual against a prediction both ends compute from the details alone (the code of the
+//!    largest child-to-parent offset, which the node's error can never be below).
 //!
-//! The orders are chosen per delta to minimise the body. Decoding checks every index against the
+//! All orders are chosen per delta to minimise the body. Decoding checks every index against the
 //! tree and every value against its range, and never allocates more entries than there are bits.
 
 use crate::bits::{BitReader, BitWriter, best_order, zigzag};
@@ -52,9 +56,9 @@ pub enum BodyError {
     /// The bit stream ended early or a code was malformed.
     #[error("delta body is truncated or malformed")]
     Malformed,
-    /// An index names no node of this terrain.
-    #[error("delta names node index {0}, beyond this terrain's {1} nodes")]
-    UnknownNode(u64, u64),
+    /// A position names no node of this terrain.
+    #[error("delta names node {0:?}, which this terrain does not have")]
+    UnknownNode(NodeId),
     /// A leaf cannot split and cannot be merged.
     #[error("delta splits or merges leaf node {0:?}")]
     LeafNode(NodeId),
@@ -71,35 +75,38 @@ pub fn predicted_code(details: [i32; 3], quantum: f32) -> u8 {
 }
 
 impl Delta {
+    /// Puts merges and splits in wire order: by level, then Morton code (parents before children).
+    pub fn canonicalize(&mut self) {
+        self.merges.sort_unstable_by_key(|&n| (n.level, morton(n)));
+        self.splits
+            .sort_unstable_by_key(|s| (s.node.level, morton(s.node)));
+    }
+
     /// Whether the delta changes nothing.
     pub fn is_empty(&self) -> bool {
         self.merges.is_empty() && self.splits.is_empty()
     }
 
     /// Encodes merges and splits into the compact body. `quantum` is the terrain's z quantum.
-    pub fn pack_body(&self, shape: &TreeShape, quantum: f32) -> Vec<u8> {
-        let mut merges: Vec<u64> = self.merges.iter().map(|&n| shape.index(n)).collect();
+    pub fn pack_body(&self, _shape: &TreeShape, quantum: f32) -> Vec<u8> {
+        let mut merges: Vec<(u8, u64)> =
+            self.merges.iter().map(|&n| (n.level, morton(n))).collect();
         merges.sort_unstable();
-        let mut splits: Vec<(u64, &Split)> = self
+        let mut splits: Vec<(u8, u64, &Split)> = self
             .splits
             .iter()
-            .map(|s| (shape.index(s.node), s))
+            .map(|s| (s.node.level, morton(s.node), s))
             .collect();
-        splits.sort_unstable_by_key(|&(i, _)| i);
-        let m_gaps = gaps(merges.iter().copied());
-        let s_gaps = gaps(splits.iter().map(|&(i, _)| i));
-        let details: Vec<u64> = splits
-            .iter()
-            .flat_map(|(_, s)| s.details.map(|d| zigzag(d as i64)))
-            .collect();
+        splits.sort_unstable_by_key(|&(l, m, _)| (l, m));
+        let m_pos = positions(merges.iter().copied());
+        let s_pos = positions(splits.iter().map(|&(l, m, _)| (l, m)));
         let residuals: Vec<u64> = splits
             .iter()
-            .map(|(_, s)| zigzag(s.err_code as i64 - predicted_code(s.details, quantum) as i64))
+            .map(|(_, _, s)| zigzag(s.err_code as i64 - predicted_code(s.details, quantum) as i64))
             .collect();
         let orders = [
-            best_order(m_gaps.iter().copied(), 15),
-            best_order(s_gaps.iter().copied(), 15),
-            best_order(details.iter().copied(), 15),
+            best_order(m_pos.iter().map(|p| p.1), 15),
+            best_order(s_pos.iter().map(|p| p.1), 15),
             best_order(residuals.iter().copied(), 15),
         ];
         let mut w = BitWriter::new();
@@ -108,15 +115,33 @@ impl Delta {
         for k in orders {
             w.put(k, 4);
         }
-        for g in &m_gaps {
-            w.put_eg(*g, orders[0]);
+        for (step, v) in &m_pos {
+            w.put_eg(*step as u64, 0);
+            w.put_eg(*v, orders[0]);
         }
-        for (i, g) in s_gaps.iter().enumerate() {
-            w.put_eg(*g, orders[1]);
-            for d in &details[3 * i..3 * i + 3] {
-                w.put_eg(*d, orders[2]);
+        for (step, v) in &s_pos {
+            w.put_eg(*step as u64, 0);
+            w.put_eg(*v, orders[1]);
+        }
+        // One detail order per level present.
+        let mut level_orders = Vec::new();
+        let mut i = 0;
+        while i < splits.len() {
+            let level = splits[i].0;
+            let j = i + splits[i..].iter().take_while(|s| s.0 == level).count();
+            let vals = splits[i..j]
+                .iter()
+                .flat_map(|(_, _, s)| s.details.map(|d| zigzag(d as i64)));
+            let k = best_order(vals, 15);
+            w.put(k, 4);
+            level_orders.extend(std::iter::repeat_n(k, j - i));
+            i = j;
+        }
+        for (n, (_, _, s)) in splits.iter().enumerate() {
+            for d in s.details {
+                w.put_eg_signed(d as i64, level_orders[n]);
             }
-            w.put_eg(residuals[i], orders[3]);
+            w.put_eg(residuals[n], orders[2]);
         }
         w.finish()
     }
@@ -136,7 +161,7 @@ impl Delta {
         if n_merges.saturating_add(n_splits) > r.remaining() {
             return Err(BodyError::Malformed);
         }
-        let mut orders = [0u32; 4];
+        let mut orders = [0u32; 3];
         for k in &mut orders {
             *k = r.get(4).ok_or(BodyError::Malformed)?;
         }
@@ -148,19 +173,35 @@ impl Delta {
         };
         let mut prev = None;
         for _ in 0..n_merges {
-            let node = next_node(shape, &mut r, orders[0], &mut prev)?;
-            delta.merges.push(node);
+            delta
+                .merges
+                .push(next_node(shape, &mut r, orders[0], &mut prev)?);
         }
+        let mut nodes = Vec::with_capacity(n_splits as usize);
         let mut prev = None;
         for _ in 0..n_splits {
-            let node = next_node(shape, &mut r, orders[1], &mut prev)?;
+            nodes.push(next_node(shape, &mut r, orders[1], &mut prev)?);
+        }
+        let mut level_orders = Vec::with_capacity(nodes.len());
+        let mut last_level = None;
+        let mut k = 0;
+        for n in &nodes {
+            if last_level != Some(n.level) {
+                k = r.get(4).ok_or(BodyError::Malformed)?;
+                last_level = Some(n.level);
+            }
+            level_orders.push(k);
+        }
+        for (i, &node) in nodes.iter().enumerate() {
             let mut details = [0i32; 3];
             for d in &mut details {
-                let v = r.get_eg_signed(orders[2]).ok_or(BodyError::Malformed)?;
+                let v = r
+                    .get_eg_signed(level_orders[i])
+                    .ok_or(BodyError::Malformed)?;
                 *d = i32::try_from(v).map_err(|_| BodyError::OutOfRange("detail"))?;
             }
-            let res = r.get_eg_signed(orders[3]).ok_or(BodyError::Malformed)?;
-            let code = predicted_code(details, quantum) as i64 + res;
+            let res = r.get_eg(orders[2]).ok_or(BodyError::Malformed)?;
+            let code = predicted_code(details, quantum) as i64 + crate::bits::unzigzag(res);
             let err_code = u8::try_from(code).map_err(|_| BodyError::OutOfRange("error code"))?;
             delta.splits.push(Split {
                 node,
@@ -172,17 +213,42 @@ impl Delta {
     }
 }
 
-/// Gaps between consecutive increasing values, minus one (the first is counted from 0).
-fn gaps(sorted: impl Iterator<Item = u64>) -> Vec<u64> {
-    let mut prev: Option<u64> = None;
+/// The Morton (Z-order) code of a node within its level: x and y bits interleaved.
+fn morton(n: NodeId) -> u64 {
+    spread(n.x) | (spread(n.y) << 1)
+}
+
+fn spread(v: u32) -> u64 {
+    let mut x = v as u64 & 0xFFFF_FFFF;
+    x = (x | (x << 16)) & 0x0000_FFFF_0000_FFFF;
+    x = (x | (x << 8)) & 0x00FF_00FF_00FF_00FF;
+    x = (x | (x << 4)) & 0x0F0F_0F0F_0F0F_0F0F;
+    x = (x | (x << 2)) & 0x3333_3333_3333_3333;
+    (x | (x << 1)) & 0x5555_5555_5555_5555
+}
+
+fn compact(v: u64) -> u32 {
+    let mut x = v & 0x5555_5555_5555_5555;
+    x = (x | (x >> 1)) & 0x3333_3333_3333_3333;
+    x = (x | (x >> 2)) & 0x0F0F_0F0F_0F0F_0F0F;
+    x = (x | (x >> 4)) & 0x00FF_00FF_00FF_00FF;
+    x = (x | (x >> 8)) & 0x0000_FFFF_0000_FFFF;
+    ((x | (x >> 16)) & 0xFFFF_FFFF) as u32
+}
+
+/// (level step, position value) per node of a (level, morton)-sorted list: the value is the gap to
+/// the previous code minus one within a level, the code itself on a new level.
+fn positions(sorted: impl Iterator<Item = (u8, u64)>) -> Vec<(u8, u64)> {
+    let mut prev: Option<(u8, u64)> = None;
     sorted
-        .map(|i| {
-            let g = match prev {
-                None => i,
-                Some(p) => i - p - 1,
+        .map(|(l, m)| {
+            let out = match prev {
+                Some((pl, pm)) if pl == l => (0, m - pm - 1),
+                Some((pl, _)) => (l - pl, m),
+                None => (l, m),
             };
-            prev = Some(i);
-            g
+            prev = Some((l, m));
+            out
         })
         .collect()
 }
@@ -191,21 +257,33 @@ fn next_node(
     shape: &TreeShape,
     r: &mut BitReader<'_>,
     k: u32,
-    prev: &mut Option<u64>,
+    prev: &mut Option<(u8, u64)>,
 ) -> Result<NodeId, BodyError> {
-    let gap = r.get_eg(k).ok_or(BodyError::Malformed)?;
-    let index = match *prev {
-        None => Some(gap),
-        Some(p) => p.checked_add(gap).and_then(|v| v.checked_add(1)),
+    let step = r.get_eg(0).ok_or(BodyError::Malformed)?;
+    let v = r.get_eg(k).ok_or(BodyError::Malformed)?;
+    let (level, code) = match *prev {
+        Some((pl, pm)) if step == 0 => {
+            (pl as u64, pm.checked_add(v).and_then(|c| c.checked_add(1)))
+        }
+        Some((pl, _)) => (pl as u64 + step, Some(v)),
+        None => (step, Some(v)),
+    };
+    let code = code.ok_or(BodyError::Malformed)?;
+    if level > shape.depth() as u64 || code >> 62 != 0 {
+        return Err(BodyError::Malformed);
     }
-    .ok_or(BodyError::Malformed)?;
-    let node = shape
-        .node(index)
-        .ok_or(BodyError::UnknownNode(index, shape.node_count()))?;
+    let node = NodeId {
+        level: level as u8,
+        x: compact(code),
+        y: compact(code >> 1),
+    };
+    if !shape.contains(node) {
+        return Err(BodyError::UnknownNode(node));
+    }
     if shape.is_leaf(node) {
         return Err(BodyError::LeafNode(node));
     }
-    *prev = Some(index);
+    *prev = Some((node.level, code));
     Ok(node)
 }
 
@@ -247,6 +325,8 @@ mod tests {
             let shape = TreeShape::new(300, 170).unwrap();
             let body = d.pack_body(&shape, 0.25);
             let back = Delta::unpack_body(&shape, 0.25, d.seq, d.digest, &body).unwrap();
+            let mut d = d;
+            d.canonicalize();
             prop_assert_eq!(back, d);
         }
 

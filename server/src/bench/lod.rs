@@ -31,6 +31,7 @@ use std::time::Instant;
 #[derive(Clone, Debug)]
 pub struct LodBenchOptions {
     /// Which path to fly.
+    /// Which path was flown.
     pub path: PathKind,
     /// LOD thresholds.
     pub params: LodParams,
@@ -61,45 +62,85 @@ impl Default for LodBenchOptions {
 /// The benchmark's figures; field meanings are in the README's benchmark section.
 #[derive(Clone, Debug, Serialize)]
 pub struct LodBenchReport {
+    /// The DEM flown over.
     pub dem: String,
+    /// Grid width, samples.
     pub width: u32,
+    /// Grid height, samples.
     pub height: u32,
+    /// Which path was flown.
     pub path: String,
+    /// Poses flown.
     pub frames: usize,
+    /// Split threshold, pixels.
     pub tau_px: f32,
+    /// Triangles the client draws per frame: median.
     pub triangles_median: f64,
+    /// Triangles the client draws per frame: maximum.
     pub triangles_max: f64,
+    /// Triangles of the full-resolution grid, for scale.
     pub full_res_triangles: u64,
+    /// Worst measured frame's 99th-percentile pixel error.
     pub px_error_p99_max: f64,
+    /// Median measured frame's 99th-percentile pixel error.
     pub px_error_p99_median: f64,
+    /// Largest pixel error of any measured sample.
     pub px_error_max: f64,
+    /// Frames whose pixel error was measured.
     pub px_error_frames: usize,
+    /// In-view samples measured per measured frame (mean).
     pub px_error_samples_per_frame: f64,
+    /// In-view samples outside the mesh's outline, as a fraction.
     pub px_error_uncovered_fraction: f64,
+    /// Directed edges without a twin inside the mesh, over measured frames.
     pub cracks: u64,
+    /// Triangles not counter-clockwise seen from above, over measured frames.
     pub folds: u64,
+    /// Frames whose incremental mesh was compared with the brute-force rule.
     pub oracle_checks: usize,
+    /// Of those, frames where the two differed.
     pub oracle_mismatches: u64,
+    /// Deltas whose digest did not match the mirror's cut.
     pub desyncs: u64,
+    /// Server time per pose (session update plus delta encoding), median, microseconds.
     pub update_us_median: f64,
+    /// Same, 99th percentile.
     pub update_us_p99: f64,
+    /// Computing the cut from scratch for the same pose, median, microseconds.
     pub scratch_us_median: f64,
+    /// Client time per delta (decode, apply, digest, fans), median, microseconds.
     pub client_us_median: f64,
+    /// Same, 99th percentile.
     pub client_us_p99: f64,
+    /// The paper's full top-down pass for the same pose, median, microseconds.
     pub paper_pass_us_median: f64,
+    /// Poses where the full pass's cut differed from the session's (must be 0).
     pub paper_pass_mismatches: u64,
+    /// Screen errors the session evaluated per pose, median.
     pub nodes_visited_median: f64,
+    /// Screen errors the full pass evaluated per pose, median.
     pub paper_pass_visited_median: f64,
+    /// Active nodes in the cut, median.
     pub active_nodes_median: f64,
+    /// Splits sent, initial delta included.
     pub splits_total: u64,
+    /// Merges sent.
     pub merges_total: u64,
+    /// Wire bytes of all deltas (initial one included) per split.
     pub split_bytes_mean: f64,
+    /// Wire bytes of the session's first delta.
     pub initial_delta_bytes: u64,
+    /// Wire bytes per second of flight after the first delta.
     pub delta_bytes_per_s_mean: f64,
+    /// Server memory of the session's state, bytes, median over poses.
     pub session_bytes: f64,
+    /// The same per active node, median over poses.
     pub session_bytes_per_active_node: f64,
+    /// Seconds to build the tree (one core).
     pub build_s: f64,
+    /// Samples per second of the tree build.
     pub build_samples_per_s: f64,
+    /// Size of the store file.
     pub store_bytes: u64,
 }
 
@@ -218,7 +259,14 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
             );
             let errs: Vec<f64> = fe.errors.iter().map(|&v| v as f64).collect();
             r.px_p99.push(quantile(&errs, 0.99));
-            if std::env::var("PXDEBUG").is_ok() { eprintln!("frame {f} p99 {:.3} max {:.2} n {}", quantile(&errs, 0.99), errs.iter().copied().fold(0.0, f64::max), errs.len()); }
+            if std::env::var("PXDEBUG").is_ok() {
+                eprintln!(
+                    "frame {f} p99 {:.3} max {:.2} n {}",
+                    quantile(&errs, 0.99),
+                    errs.iter().copied().fold(0.0, f64::max),
+                    errs.len()
+                );
+            }
             r.px_max = r.px_max.max(errs.iter().copied().fold(0.0, f64::max));
             r.px_samples.push((errs.len() as u64 + fe.uncovered) as f64);
             r.uncovered += fe.uncovered;
@@ -342,7 +390,11 @@ fn drawn_triangles(
         };
         let b = geom.node_box(parent, pd.z, pd.err_code);
         let e = view.screen_error(&b, error_value(pd.err_code));
-        let a = if std::env::var("NOMORPH").is_ok() { 1.0 } else { morph_alpha(e, p.tau, p.lambda) };
+        let a = if std::env::var("NOMORPH").is_ok() {
+            1.0
+        } else {
+            morph_alpha(e, p.tau, p.lambda)
+        };
         own * a + geom.world_pos(parent, pd.z) * (1.0 - a)
     };
     mesh.triangles().iter().map(|t| t.0.map(pos)).collect()

@@ -324,7 +324,7 @@ pub fn finish(source: &str, mut raw: RawGrid, opts: &LoadOptions) -> Result<Dem,
                 nan.1 = i;
             }
             nan.0 += 1;
-        } else if !(h.abs() <= ABSURD_HEIGHT_M) {
+        } else if h.is_infinite() || h.abs() > ABSURD_HEIGHT_M {
             return Err(DemError::Absurd {
                 input: source.into(),
                 value: *h,

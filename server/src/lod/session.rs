@@ -249,8 +249,7 @@ impl VertexSession {
             };
             self.process(engine, view, p, node, &mut delta, stats);
         }
-        delta.splits.sort_unstable_by_key(|s| shape.index(s.node));
-        delta.merges.sort_unstable_by_key(|&n| shape.index(n));
+        delta.canonicalize();
         delta.digest = self.cut.digest();
         delta
     }

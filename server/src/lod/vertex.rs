@@ -126,18 +126,18 @@ impl<'s> VertexEngine<'s> {
     /// receives after its initial cut.
     pub fn full_delta<V: Copy + Default>(&self, cut: &Cut<V>, seq: u64) -> Delta {
         let shape = &self.geom.shape;
-        let mut interior: Vec<u64> = cut.interior_indices().collect();
-        interior.sort_unstable();
-        Delta {
+        let mut delta = Delta {
             seq,
             digest: cut.digest(),
             merges: Vec::new(),
-            splits: interior
-                .into_iter()
+            splits: cut
+                .interior_indices()
                 .filter_map(|i| shape.node(i))
                 .map(|n| self.split_payload(n))
                 .collect(),
-        }
+        };
+        delta.canonicalize();
+        delta
     }
 
     /// One coherent top-down update of `cut` for `view`; returns the delta that was applied.
@@ -177,8 +177,7 @@ impl<'s> VertexEngine<'s> {
             }
         }
         // The walk meets nodes depth-first; the wire wants parents before children.
-        delta.splits.sort_unstable_by_key(|s| shape.index(s.node));
-        delta.merges.sort_unstable_by_key(|&n| shape.index(n));
+        delta.canonicalize();
         delta.digest = cut.digest();
         delta
     }
