@@ -45,7 +45,7 @@ impl Default for LodParams {
         LodParams {
             tau: 1.0,
             merge_ratio: 0.9,
-            lambda: 2.0,
+            lambda: 1.5,
         }
     }
 }
