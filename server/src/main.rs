@@ -37,6 +37,11 @@ enum Command {
         #[command(flatten)]
         dem: DemArgs,
     },
+    /// Check a store completely (header, sizes, checksums) and print what it holds, as JSON.
+    Info {
+        /// The store file.
+        store: PathBuf,
+    },
     /// Benchmarks.
     Bench {
         #[command(subcommand)]
@@ -108,11 +113,22 @@ impl DemArgs {
             },
             progress: !self.quiet,
         };
-        dem::load(spec, &opts).with_context(|| format!("cannot load DEM {spec}"))
+        dem::load(spec, &opts).context("cannot load the DEM")
     }
 }
 
-fn main() -> anyhow::Result<()> {
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // The whole chain on one line, no backtrace: these are input errors, not bugs.
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> anyhow::Result<()> {
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("RELIEF_LOG")
@@ -129,7 +145,7 @@ fn main() -> anyhow::Result<()> {
         } => {
             let d = dem.load(&input)?;
             let rep = preprocess::build_store(&d, &output, z_quantum, !dem.quiet)
-                .with_context(|| format!("cannot build store {}", output.display()))?;
+                .context("cannot build the store")?;
             let samples = d.width as f64 * d.height as f64;
             tracing::info!(
                 "wrote {} ({} bytes): {}x{} samples, tree built in {:.2} s ({:.1} M samples/s)",
@@ -140,6 +156,22 @@ fn main() -> anyhow::Result<()> {
                 rep.tree_s,
                 samples / rep.tree_s.max(1e-9) / 1e6
             );
+        }
+        Command::Info { store } => {
+            let s = relief_server::store::Store::open(&store).context("cannot open the store")?;
+            let g = s.geometry();
+            let info = serde_json::json!({
+                "file": store.display().to_string(),
+                "bytes": s.file_len(),
+                "width": g.shape.width(),
+                "height": g.shape.height(),
+                "depth": g.shape.depth(),
+                "nodes": g.shape.node_count(),
+                "spacing_m": [g.frame.dx, g.frame.dy],
+                "z_quantum_m": g.z_quantum,
+                "meta": s.meta(),
+            });
+            println!("{}", serde_json::to_string_pretty(&info)?);
         }
         Command::Bench {
             which:

@@ -38,7 +38,8 @@ pub struct LodBenchOptions {
     /// Measure pixel error on every k-th frame; `None` picks k so that at least 60 frames and
     /// about 20 M samples are measured.
     pub px_every: Option<usize>,
-    /// Minimum samples measured per measured frame (a stratified lattice on larger grids).
+    /// Minimum grid samples in each measured frame's stratified lattice (all samples on grids
+    /// smaller than this); about a quarter of them lie in view on the standard path.
     pub px_min_samples: u64,
     /// Check the incremental mesh against the oracle on this many evenly spread frames.
     pub oracle_frames: usize,
@@ -52,7 +53,7 @@ impl Default for LodBenchOptions {
             path: PathKind::Standard,
             params: LodParams::default(),
             px_every: None,
-            px_min_samples: 1_000_000,
+            px_min_samples: 4_000_000,
             oracle_frames: 12,
             progress: false,
         }
@@ -90,6 +91,10 @@ pub struct LodBenchReport {
     pub px_error_frames: usize,
     /// In-view samples measured per measured frame (mean).
     pub px_error_samples_per_frame: f64,
+    /// Grid samples in each measured frame's lattice (all samples when the stride is 1).
+    pub px_error_lattice_samples: u64,
+    /// Stride of that lattice, in samples.
+    pub px_error_lattice_stride: u32,
     /// In-view samples outside the mesh's outline, as a fraction.
     pub px_error_uncovered_fraction: f64,
     /// Directed edges without a twin inside the mesh, over measured frames.
@@ -291,6 +296,11 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         px_error_max: r.px_max,
         px_error_frames: r.px_p99.len(),
         px_error_samples_per_frame: mean(&r.px_samples),
+        px_error_lattice_samples: {
+            let l = Lattice::for_grid(w, h, opts.px_min_samples, 0);
+            l.count(w, 0) as u64 * l.count(h, 0) as u64
+        },
+        px_error_lattice_stride: Lattice::for_grid(w, h, opts.px_min_samples, 0).stride,
         px_error_uncovered_fraction: r.uncovered as f64 / (r.uncovered + r.covered).max(1) as f64,
         cracks: r.cracks,
         folds: r.folds,

@@ -142,7 +142,7 @@ impl Default for LoadOptions {
 #[derive(Debug, thiserror::Error)]
 pub enum DemError {
     /// The file could not be opened or read.
-    #[error("{path}: {source}")]
+    #[error("{path}: cannot read the file")]
     Io {
         /// The file.
         path: String,

@@ -48,7 +48,8 @@ impl Lattice {
         }
     }
 
-    fn count(&self, n: u32, off: u32) -> u32 {
+    /// How many lattice samples fall in an axis of `n` samples, starting at `off`.
+    pub fn count(&self, n: u32, off: u32) -> u32 {
         if off >= n {
             0
         } else {

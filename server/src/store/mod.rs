@@ -23,7 +23,7 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum StoreError {
     /// The file could not be read or written.
-    #[error("{path}: {source}")]
+    #[error("{path}: cannot read or write the file")]
     Io {
         /// The file.
         path: String,
