@@ -1,117 +1,408 @@
-//! Void filling by pull-push interpolation over a pyramid, then harmonic smoothing.
+//! The void mask, and void filling by a coarse-to-fine harmonic fill (DESIGN.md section 2: no
+//! walls, spikes or holes at voids).
 //!
-//! Each coarser level averages the valid samples under it (voids weigh nothing). Going back down,
-//! a void takes the bilinear interpolation of the level above, which is defined everywhere once
-//! any sample is valid. A few Jacobi sweeps of the Laplace equation over the voids alone then
-//! smooth the fill so that it meets the surrounding surface without a step: no walls, no spikes,
-//! and every filled value lies within the range of the valid samples around it.
+//! Real DEMs have voids (radar shadow, water, unmeasured cells). Relief keeps which samples were
+//! voids in a [`VoidMask`] and fills their heights with a smooth membrane stretched over the valid
+//! samples around them: the solution of Laplace's equation with the valid samples as boundary
+//! values, a standard hole-filling choice (it reproduces planes exactly and never overshoots).
+//!
+//! Solving it directly over a large void would take many sweeps, so the solve is cascadic:
+//! 1. **Pull.** A pyramid of 2x2 block averages of the valid samples only, with their counts,
+//!    down to one cell (odd sizes take partial blocks at the edges, so any size works).
+//! 2. **Push.** From the coarsest level down, a cell without any valid sample under it starts
+//!    from the bilinear interpolation of the level above, then a few red-black Gauss-Seidel sweeps
+//!    of the 4-neighbour Laplacian relax those cells alone; cells with data stay fixed.
+//! 3. Level 0 does the same for the voids themselves, with the valid samples fixed.
+//!
+//! Every update is an average of other values, so a filled height always lies within the range of
+//! the valid heights around the void: no spikes, no walls. The arithmetic runs in a fixed order,
+//! so the fill is the same on every machine.
 
-use super::VoidMask;
+/// Red-black Gauss-Seidel sweeps per pyramid level. Each level starts from the finer-scale
+/// interpolation of a relaxed coarser level, so only the error at the scale of a few cells is
+/// left, which a few sweeps remove.
+const SWEEPS_PER_LEVEL: usize = 6;
+/// Extra sweeps at full resolution, where the result is kept.
+const SWEEPS_LEVEL_0: usize = 24;
 
-/// Jacobi sweeps over the voids after the pyramid fill.
-const SMOOTHING_SWEEPS: usize = 24;
+/// One bit per sample, row-major, 64 samples a word: set where the source had no data.
+///
+/// A bitmask rather than `Vec<bool>`: a 16385 x 16385 grid needs 32 MiB instead of 256 MiB.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VoidMask {
+    /// The bits; bit `i % 64` of word `i / 64` is sample `i`.
+    bits: Vec<u64>,
+    /// Samples the mask covers, so that out-of-range indices are caught.
+    len: usize,
+    /// Set bits, kept so that reports and the fill's early exit cost nothing.
+    count: u64,
+}
 
-/// Fills the voids of a `w` x `h` grid in place.
+impl VoidMask {
+    /// A mask of `n` samples, none void.
+    pub fn new(n: usize) -> VoidMask {
+        VoidMask {
+            bits: vec![0; n.div_ceil(64)],
+            len: n,
+            count: 0,
+        }
+    }
+
+    /// Marks sample `i` void.
+    ///
+    /// # Panics
+    /// If `i` is not below the length given to [`VoidMask::new`] (a caller bug, not bad input).
+    pub fn set(&mut self, i: usize) {
+        assert!(i < self.len, "void index {i} out of {}", self.len);
+        let (w, b) = (i / 64, 1u64 << (i % 64));
+        if self.bits[w] & b == 0 {
+            self.bits[w] |= b;
+            self.count += 1;
+        }
+    }
+
+    /// Whether sample `i` is void (false past the end).
+    pub fn get(&self, i: usize) -> bool {
+        i < self.len && self.bits[i / 64] & (1 << (i % 64)) != 0
+    }
+
+    /// Number of void samples.
+    pub fn count(&self) -> u64 {
+        self.count
+    }
+
+    /// Number of samples the mask covers.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the mask covers no samples.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The void samples' indices, ascending; cheap on sparse masks (whole empty words are skipped).
+    pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
+        self.bits.iter().enumerate().flat_map(|(w, &word)| {
+            let mut rest = word;
+            std::iter::from_fn(move || {
+                (rest != 0).then(|| {
+                    let b = rest.trailing_zeros() as usize;
+                    rest &= rest - 1;
+                    w * 64 + b
+                })
+            })
+        })
+    }
+}
+
+/// A pyramid level: per cell, the mean of the valid samples under it and how many there are.
+struct Level {
+    /// Cells per row.
+    w: usize,
+    /// Rows.
+    h: usize,
+    /// Mean of the valid samples under each cell; after the push, the estimate everywhere.
+    mean: Vec<f32>,
+    /// Valid samples under each cell; zero marks a cell to be filled at this level.
+    count: Vec<u32>,
+}
+
+/// Fills the voids of a `w` x `h` row-major grid in place; valid samples are not touched.
+///
+/// If every sample is void there is nothing to continue from, and all heights become 0
+/// ([`super::load`] refuses such grids before filling).
 pub fn fill_voids(w: u32, h: u32, heights: &mut [f32], voids: &VoidMask, progress: bool) {
+    let (w, h) = (w as usize, h as usize);
+    debug_assert_eq!(heights.len(), w * h);
     if voids.count() == 0 {
         return;
     }
-    let bar = crate::bench::progress_bar(progress && heights.len() > 1 << 22, 2, "voids");
-    let (w, h) = (w as usize, h as usize);
-    // Level 0 estimate: valid samples with weight 1.
-    let mut levels: Vec<(usize, usize, Vec<f32>, Vec<f32>)> = Vec::new();
-    let (sum, weight): (Vec<f32>, Vec<f32>) = heights
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| if voids.get(i) { (0.0, 0.0) } else { (v, 1.0) })
-        .unzip();
-    levels.push((w, h, sum, weight));
-    while {
-        let (lw, lh, _, _) = levels[levels.len() - 1];
-        lw > 1 || lh > 1
-    } {
-        let (lw, lh, s, wt) = &levels[levels.len() - 1];
-        let (cw, ch) = (lw.div_ceil(2), lh.div_ceil(2));
-        let mut cs = vec![0.0f32; cw * ch];
-        let mut cwt = vec![0.0f32; cw * ch];
-        for y in 0..*lh {
-            for x in 0..*lw {
-                let (i, c) = (y * lw + x, (y / 2) * cw + x / 2);
-                cs[c] += s[i];
-                cwt[c] += wt[i];
-            }
-        }
-        levels.push((cw, ch, cs, cwt));
+    if voids.count() as usize >= heights.len() {
+        heights.fill(0.0);
+        return;
     }
-    bar.inc(1);
-    // Pull down: each level's estimate is its own average where it has data, else the bilinear
-    // interpolation of the coarser estimate.
-    let top = levels.len() - 1;
-    let (_, _, ts, tw) = &levels[top];
-    let mut est = vec![ts[0] / tw[0].max(f32::MIN_POSITIVE)];
-    let (mut ew, mut eh) = (1usize, 1usize);
-    for k in (0..top).rev() {
-        let (lw, lh, s, wt) = &levels[k];
-        let mut next = vec![0.0f32; lw * lh];
-        for y in 0..*lh {
-            for x in 0..*lw {
-                let i = y * lw + x;
-                next[i] = if wt[i] > 0.0 {
-                    s[i] / wt[i]
-                } else {
-                    bilinear(
-                        &est,
-                        ew,
-                        eh,
-                        (x as f32 + 0.5) / 2.0 - 0.5,
-                        (y as f32 + 0.5) / 2.0 - 0.5,
-                    )
-                };
-            }
-        }
-        est = next;
-        (ew, eh) = (*lw, *lh);
+    let mut levels = vec![coarsen_samples(w, h, heights, voids)];
+    while let Some(l) = levels.last().filter(|l| l.w > 1 || l.h > 1) {
+        let next = coarsen(l);
+        levels.push(next);
     }
-    for (i, v) in heights.iter_mut().enumerate() {
-        if voids.get(i) {
-            *v = est[i];
+    let bar = crate::bench::progress_bar(
+        progress && heights.len() > 1 << 22,
+        levels.len() as u64 + 1,
+        "voids",
+    );
+    // Push from the coarsest level (one cell, which has data) down to level 1.
+    for k in (0..levels.len().saturating_sub(1)).rev() {
+        let (fine, coarse) = levels.split_at_mut(k + 1);
+        let (fine, coarse) = (&mut fine[k], &coarse[0]);
+        let holes: Vec<usize> = (0..fine.mean.len())
+            .filter(|&i| fine.count[i] == 0)
+            .collect();
+        for &i in &holes {
+            fine.mean[i] = upsample(coarse, i % fine.w, i / fine.w);
         }
+        relax(fine.w, fine.h, &mut fine.mean, &holes, SWEEPS_PER_LEVEL);
+        bar.inc(1);
     }
-    smooth(w, h, heights, voids);
+    // Level 0: the voids themselves.
+    let holes: Vec<usize> = voids.iter().collect();
+    for &i in &holes {
+        heights[i] = upsample(&levels[0], i % w, i / w);
+    }
+    relax(w, h, heights, &holes, SWEEPS_LEVEL_0);
     bar.finish_and_clear();
 }
 
-fn bilinear(g: &[f32], w: usize, h: usize, x: f32, y: f32) -> f32 {
-    let x = x.clamp(0.0, (w - 1) as f32);
-    let y = y.clamp(0.0, (h - 1) as f32);
-    let (x0, y0) = (x.floor() as usize, y.floor() as usize);
-    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
-    let (fx, fy) = (x - x0 as f32, y - y0 as f32);
-    let top = g[y0 * w + x0] * (1.0 - fx) + g[y0 * w + x1] * fx;
-    let bottom = g[y1 * w + x0] * (1.0 - fx) + g[y1 * w + x1] * fx;
-    top * (1.0 - fy) + bottom * fy
-}
-
-/// Jacobi sweeps of the Laplace equation over the void samples, valid samples held fixed.
-fn smooth(w: usize, h: usize, heights: &mut [f32], voids: &VoidMask) {
-    let holes: Vec<usize> = (0..heights.len()).filter(|&i| voids.get(i)).collect();
-    let mut next = vec![0.0f32; holes.len()];
-    for _ in 0..SMOOTHING_SWEEPS {
-        for (k, &i) in holes.iter().enumerate() {
-            let (x, y) = (i % w, i / w);
-            let mut sum = 0.0;
-            let mut n = 0.0;
-            for (dx, dy) in [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)] {
-                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                if nx >= 0 && ny >= 0 && (nx as usize) < w && (ny as usize) < h {
-                    sum += heights[ny as usize * w + nx as usize];
-                    n += 1.0;
+/// Level 1 of the pyramid, straight from the samples: 2x2 blocks (partial at odd edges).
+fn coarsen_samples(w: usize, h: usize, heights: &[f32], voids: &VoidMask) -> Level {
+    let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+    let mut mean = vec![0.0f32; cw * ch];
+    let mut count = vec![0u32; cw * ch];
+    for cy in 0..ch {
+        for cx in 0..cw {
+            let (mut sum, mut n) = (0.0f64, 0u32);
+            for y in 2 * cy..(2 * cy + 2).min(h) {
+                for x in 2 * cx..(2 * cx + 2).min(w) {
+                    let i = y * w + x;
+                    if !voids.get(i) {
+                        sum += heights[i] as f64;
+                        n += 1;
+                    }
                 }
             }
-            next[k] = sum / n;
+            if n > 0 {
+                mean[cy * cw + cx] = (sum / n as f64) as f32;
+            }
+            count[cy * cw + cx] = n;
         }
-        for (k, &i) in holes.iter().enumerate() {
-            heights[i] = next[k];
+    }
+    Level {
+        w: cw,
+        h: ch,
+        mean,
+        count,
+    }
+}
+
+/// The next coarser level: count-weighted means of 2x2 blocks of cells.
+fn coarsen(l: &Level) -> Level {
+    let (cw, ch) = (l.w.div_ceil(2), l.h.div_ceil(2));
+    let mut mean = vec![0.0f32; cw * ch];
+    let mut count = vec![0u32; cw * ch];
+    for cy in 0..ch {
+        for cx in 0..cw {
+            let (mut sum, mut n) = (0.0f64, 0u64);
+            for y in 2 * cy..(2 * cy + 2).min(l.h) {
+                for x in 2 * cx..(2 * cx + 2).min(l.w) {
+                    let i = y * l.w + x;
+                    sum += l.mean[i] as f64 * l.count[i] as f64;
+                    n += l.count[i] as u64;
+                }
+            }
+            if n > 0 {
+                mean[cy * cw + cx] = (sum / n as f64) as f32;
+            }
+            count[cy * cw + cx] = n.min(u32::MAX as u64) as u32;
         }
+    }
+    Level {
+        w: cw,
+        h: ch,
+        mean,
+        count,
+    }
+}
+
+/// The coarse level's estimate at the centre of fine cell (`x`, `y`), bilinearly interpolated
+/// between coarse cell centres (clamped at the edges).
+fn upsample(coarse: &Level, x: usize, y: usize) -> f32 {
+    // Fine cell x covers coarse coordinate x / 2 .. (x + 1) / 2; its centre, in coarse cell-centre
+    // units, is (x + 0.5) / 2 - 0.5.
+    let cx = ((x as f32 - 0.5) * 0.5).clamp(0.0, (coarse.w - 1) as f32);
+    let cy = ((y as f32 - 0.5) * 0.5).clamp(0.0, (coarse.h - 1) as f32);
+    let (x0, y0) = (cx as usize, cy as usize);
+    let (x1, y1) = ((x0 + 1).min(coarse.w - 1), (y0 + 1).min(coarse.h - 1));
+    let (fx, fy) = (cx - x0 as f32, cy - y0 as f32);
+    let g = |x: usize, y: usize| coarse.mean[y * coarse.w + x];
+    let top = g(x0, y0) + (g(x1, y0) - g(x0, y0)) * fx;
+    let bottom = g(x0, y1) + (g(x1, y1) - g(x0, y1)) * fx;
+    top + (bottom - top) * fy
+}
+
+/// Red-black Gauss-Seidel sweeps of the 4-neighbour Laplacian over `holes` (ascending indices);
+/// other cells are fixed. At the grid's edges only the neighbours inside count.
+fn relax(w: usize, h: usize, g: &mut [f32], holes: &[usize], sweeps: usize) {
+    for _ in 0..sweeps {
+        for colour in 0..2 {
+            for &i in holes {
+                let (x, y) = (i % w, i / w);
+                if (x + y) % 2 != colour {
+                    continue;
+                }
+                let (mut sum, mut n) = (0.0f32, 0.0f32);
+                if x > 0 {
+                    sum += g[i - 1];
+                    n += 1.0;
+                }
+                if x + 1 < w {
+                    sum += g[i + 1];
+                    n += 1.0;
+                }
+                if y > 0 {
+                    sum += g[i - w];
+                    n += 1.0;
+                }
+                if y + 1 < h {
+                    sum += g[i + w];
+                    n += 1.0;
+                }
+                if n > 0.0 {
+                    g[i] = sum / n;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Punches the samples for which `hole` is true out of `truth`, fills them, and returns the
+    /// filled grid and the mask.
+    fn punch(
+        w: u32,
+        h: u32,
+        truth: &[f32],
+        hole: impl Fn(u32, u32) -> bool,
+    ) -> (Vec<f32>, VoidMask) {
+        let mut voids = VoidMask::new(truth.len());
+        let mut g = truth.to_vec();
+        for y in 0..h {
+            for x in 0..w {
+                if hole(x, y) {
+                    let i = (y * w + x) as usize;
+                    voids.set(i);
+                    g[i] = 1e9;
+                }
+            }
+        }
+        fill_voids(w, h, &mut g, &voids, false);
+        (g, voids)
+    }
+
+    /// Min and max of the valid samples 4-adjacent to a void.
+    fn rim_range(w: u32, h: u32, g: &[f32], voids: &VoidMask) -> (f32, f32) {
+        let (w, h) = (w as usize, h as usize);
+        let mut r = (f32::MAX, f32::MIN);
+        for i in voids.iter() {
+            let (x, y) = (i % w, i / w);
+            for (nx, ny) in [
+                (x.wrapping_sub(1), y),
+                (x + 1, y),
+                (x, y.wrapping_sub(1)),
+                (x, y + 1),
+            ] {
+                if nx < w && ny < h && !voids.get(ny * w + nx) {
+                    let v = g[ny * w + nx];
+                    r = (r.0.min(v), r.1.max(v));
+                }
+            }
+        }
+        r
+    }
+
+    #[test]
+    fn hole_in_a_ramp_is_filled_close_to_the_ramp_within_its_rim() {
+        let (w, h) = (40u32, 30u32);
+        let ramp: Vec<f32> = (0..w * h)
+            .map(|i| (i % w) as f32 * 2.0 + (i / w) as f32)
+            .collect();
+        let (g, voids) = punch(w, h, &ramp, |x, y| {
+            (12..25).contains(&x) && (10..20).contains(&y)
+        });
+        let (lo, hi) = rim_range(w, h, &g, &voids);
+        for i in voids.iter() {
+            assert!(
+                g[i] >= lo && g[i] <= hi,
+                "fill {} outside rim {lo}..{hi}",
+                g[i]
+            );
+            assert!(
+                (g[i] - ramp[i]).abs() < 0.5,
+                "fill {} vs ramp {}",
+                g[i],
+                ramp[i]
+            );
+        }
+        for i in (0..ramp.len()).filter(|&i| !voids.get(i)) {
+            assert_eq!(g[i], ramp[i], "valid samples are untouched");
+        }
+    }
+
+    #[test]
+    fn large_hole_converges_to_the_plane() {
+        // A 120 x 120 hole in a tilted plane of odd size: the harmonic fill is the plane itself.
+        let (w, h) = (301u32, 257u32);
+        let plane: Vec<f32> = (0..w * h)
+            .map(|i| 500.0 + 0.3 * (i % w) as f32 - 0.7 * (i / w) as f32)
+            .collect();
+        let (g, voids) = punch(w, h, &plane, |x, y| {
+            (90..210).contains(&x) && (60..180).contains(&y)
+        });
+        let worst = voids
+            .iter()
+            .map(|i| (g[i] - plane[i]).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst < 2.0,
+            "worst error {worst} m over a hole 120 samples wide"
+        );
+    }
+
+    #[test]
+    fn holes_on_the_border_and_a_bump_stay_within_the_rim() {
+        let (w, h) = (64u32, 48u32);
+        let bump: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32 - 40.0, (i / w) as f32 - 20.0);
+                100.0 + 900.0 * (-(x * x + y * y) / 200.0).exp()
+            })
+            .collect();
+        // A corner hole, an edge strip and a hole over the bump's summit.
+        let (g, voids) = punch(w, h, &bump, |x, y| {
+            (x < 6 && y < 5) || y == h - 1 || ((36..45).contains(&x) && (16..25).contains(&y))
+        });
+        let (lo, hi) = rim_range(w, h, &g, &voids);
+        for i in voids.iter() {
+            assert!(
+                g[i].is_finite() && g[i] >= lo && g[i] <= hi,
+                "{} outside {lo}..{hi}",
+                g[i]
+            );
+        }
+    }
+
+    #[test]
+    fn one_valid_sample_fills_everything_with_its_height() {
+        let mut voids = VoidMask::new(35);
+        let mut g = vec![f32::NAN; 35];
+        g[17] = 42.0;
+        (0..35).filter(|&i| i != 17).for_each(|i| voids.set(i));
+        fill_voids(7, 5, &mut g, &voids, false);
+        assert!(g.iter().all(|&v| v == 42.0), "{g:?}");
+    }
+
+    #[test]
+    fn mask_counts_and_iterates() {
+        let mut m = VoidMask::new(200);
+        for i in [0, 63, 64, 130, 199, 64] {
+            m.set(i);
+        }
+        assert_eq!(m.count(), 5);
+        assert_eq!(m.iter().collect::<Vec<_>>(), vec![0, 63, 64, 130, 199]);
+        assert!(m.get(130) && !m.get(131) && !m.get(10_000));
+        assert_eq!(m.len(), 200);
     }
 }

@@ -254,7 +254,7 @@ impl VertexSession {
         delta
     }
 
-    /// Examines the group of interior node `node`.
+    /// Examines the group of interior node `node` (the caller knows it is interior).
     fn process(
         &mut self,
         engine: &VertexEngine<'_>,
@@ -265,12 +265,15 @@ impl VertexSession {
         stats: &mut UpdateStats,
     ) {
         let shape = &engine.geometry().shape;
-        if !self.cut.is_interior(shape, node) {
-            return;
+        // Each child with whether it is interior: looked up once, used twice.
+        let mut kids = [(NodeId::ROOT, false); 4];
+        let mut n = 0;
+        for (_, c) in shape.children(node) {
+            kids[n] = (c, self.cut.is_interior(shape, c));
+            n += 1;
         }
-        let all_active = shape
-            .children(node)
-            .all(|(_, c)| !self.cut.is_interior(shape, c));
+        let kids = &kids[..n];
+        let all_active = kids.iter().all(|&(_, interior)| !interior);
         let (bv, err) = engine.box_view(view, node);
         let mut slack = f64::INFINITY;
         if all_active {
@@ -286,8 +289,8 @@ impl VertexSession {
             }
             slack = merge_slack(view, &bv, err, p.tau * p.merge_ratio);
         }
-        for (_, c) in shape.children(node) {
-            if shape.is_leaf(c) || self.cut.is_interior(shape, c) {
+        for &(c, interior) in kids {
+            if interior || shape.is_leaf(c) {
                 continue;
             }
             stats.visited += 1;

@@ -112,7 +112,12 @@ fn build_level(geom: &TerrainGeometry, level: u8, t: &mut TreeArrays) {
             t.z[me] = z;
             t.zmin[me] = lo;
             t.zmax[me] = hi;
-            let border = border_offset(geom, NodeId { level, x, y });
+            let on_border = x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+            let border = if on_border {
+                border_offset(geom, NodeId { level, x, y })
+            } else {
+                0.0
+            };
             t.err[me] = error_code(deviation.max(border).max(nested));
         }
     }
