@@ -15,7 +15,7 @@
 
 use glam::Vec3;
 use relief_proto::terrain::TerrainGeometry;
-use relief_proto::view::{Camera, Lens};
+use relief_proto::view::{Camera, Lens, ViewState};
 
 /// The pixel errors of one frame.
 #[derive(Clone, Debug, Default)]
@@ -158,13 +158,12 @@ struct Projector {
 
 impl Projector {
     fn new(c: &Camera, lens: &Lens) -> Projector {
-        let forward = c.forward();
-        let right = forward.cross(Vec3::Z).normalize_or(Vec3::X);
+        let [forward, right, up] = ViewState::new(c, lens).basis();
         let (tx, ty) = lens.half_tangents();
         Projector {
             eye: c.eye,
             right,
-            up: right.cross(forward),
+            up,
             forward,
             focal: lens.focal_px(),
             near: lens.near,
