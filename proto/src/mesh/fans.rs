@@ -128,7 +128,9 @@ fn corner_cells(shape: &TreeShape, node: NodeId) -> impl Iterator<Item = (u32, u
         .map(|(c, r)| (c - 1, r - 1))
 }
 
-/// Adds the corner cells of the active nodes just outside each edge of `node`'s block.
+/// Adds the cells centred on `node`'s block boundary at the corners of the active nodes just
+/// outside each edge. Those neighbours are disjoint from the block, so the corners on their side
+/// facing the block lie exactly on the block's edge line.
 fn neighbour_corner_cells<V: Copy + Default>(
     shape: &TreeShape,
     cut: &Cut<V>,
@@ -137,28 +139,38 @@ fn neighbour_corner_cells<V: Copy + Default>(
 ) {
     let (c0, r0, c1, r1) = shape.block(node);
     let (w, h) = (shape.width(), shape.height());
+    // A cell (c, r) exists when its four samples do: c + 1 < w and r + 1 < h.
+    let mut push = |c: i64, r: i64| {
+        if c >= 0 && r >= 0 && c + 1 < w as i64 && r + 1 < h as i64 {
+            out.push((c as u32, r as u32));
+        }
+    };
     // West and east edges: walk the column just outside, neighbour by neighbour.
-    for col in [c0.checked_sub(1), (c1 + 1 < w).then_some(c1 + 1)]
-        .into_iter()
-        .flatten()
-    {
+    for (col, west) in [(c0 as i64 - 1, true), (c1 as i64 + 1, false)] {
+        if col < 0 || col >= w as i64 {
+            continue;
+        }
         let mut r = r0;
         while r <= r1 {
-            let n = cut.active_ancestor(shape, col, r);
-            out.extend(corner_cells(shape, n));
-            r = shape.block(n).3 + 1;
+            let (nc0, nr0, nc1, nr1) = shape.block(cut.active_ancestor(shape, col as u32, r));
+            let c = if west { nc1 as i64 } else { nc0 as i64 - 1 };
+            push(c, nr0 as i64 - 1);
+            push(c, nr1 as i64);
+            r = nr1 + 1;
         }
     }
     // North and south edges: the row just outside.
-    for row in [r0.checked_sub(1), (r1 + 1 < h).then_some(r1 + 1)]
-        .into_iter()
-        .flatten()
-    {
+    for (row, north) in [(r0 as i64 - 1, true), (r1 as i64 + 1, false)] {
+        if row < 0 || row >= h as i64 {
+            continue;
+        }
         let mut c = c0;
         while c <= c1 {
-            let n = cut.active_ancestor(shape, c, row);
-            out.extend(corner_cells(shape, n));
-            c = shape.block(n).2 + 1;
+            let (nc0, nr0, nc1, nr1) = shape.block(cut.active_ancestor(shape, c, row as u32));
+            let r = if north { nr1 as i64 } else { nr0 as i64 - 1 };
+            push(nc0 as i64 - 1, r);
+            push(nc1 as i64, r);
+            c = nc1 + 1;
         }
     }
 }
