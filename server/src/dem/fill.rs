@@ -1,5 +1,5 @@
-//! The void mask, and void filling by a coarse-to-fine harmonic fill (DESIGN.md section 2: no
-//! walls, spikes or holes at voids).
+//! Void filling by a coarse-to-fine harmonic fill (DESIGN.md section 2: no walls, spikes or holes
+//! at voids).
 //!
 //! Real DEMs have voids (radar shadow, water, unmeasured cells). Relief keeps which samples were
 //! voids in a [`VoidMask`] and fills their heights with a smooth membrane stretched over the valid
@@ -14,9 +14,12 @@
 //!    of the 4-neighbour Laplacian relax those cells alone; cells with data stay fixed.
 //! 3. Level 0 does the same for the voids themselves, with the valid samples fixed.
 //!
-//! Every update is an average of other values, so a filled height always lies within the range of
-//! the valid heights around the void: no spikes, no walls. The arithmetic runs in a fixed order,
-//! so the fill is the same on every machine.
+//! Every step is an average, so filled heights never leave the range of the valid heights near
+//! the void (the converged membrane stays within the range of the void's rim): no spikes, no
+//! walls, and no creases, since each level is smoothed before the next finer one starts from it.
+//! The arithmetic runs in a fixed order, so the fill is the same on every machine. Cost: a pass
+//! over the grid for the pyramid (a quarter of the grid's size in extra memory), then work in
+//! proportion to the voids; 1.7 M voids in an 8193 x 8193 grid fill in about 1.5 s.
 
 /// Red-black Gauss-Seidel sweeps per pyramid level. Each level starts from the finer-scale
 /// interpolation of a relaxed coarser level, so only the error at the scale of a few cells is
@@ -25,76 +28,7 @@ const SWEEPS_PER_LEVEL: usize = 6;
 /// Extra sweeps at full resolution, where the result is kept.
 const SWEEPS_LEVEL_0: usize = 24;
 
-/// One bit per sample, row-major, 64 samples a word: set where the source had no data.
-///
-/// A bitmask rather than `Vec<bool>`: a 16385 x 16385 grid needs 32 MiB instead of 256 MiB.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct VoidMask {
-    /// The bits; bit `i % 64` of word `i / 64` is sample `i`.
-    bits: Vec<u64>,
-    /// Samples the mask covers, so that out-of-range indices are caught.
-    len: usize,
-    /// Set bits, kept so that reports and the fill's early exit cost nothing.
-    count: u64,
-}
-
-impl VoidMask {
-    /// A mask of `n` samples, none void.
-    pub fn new(n: usize) -> VoidMask {
-        VoidMask {
-            bits: vec![0; n.div_ceil(64)],
-            len: n,
-            count: 0,
-        }
-    }
-
-    /// Marks sample `i` void.
-    ///
-    /// # Panics
-    /// If `i` is not below the length given to [`VoidMask::new`] (a caller bug, not bad input).
-    pub fn set(&mut self, i: usize) {
-        assert!(i < self.len, "void index {i} out of {}", self.len);
-        let (w, b) = (i / 64, 1u64 << (i % 64));
-        if self.bits[w] & b == 0 {
-            self.bits[w] |= b;
-            self.count += 1;
-        }
-    }
-
-    /// Whether sample `i` is void (false past the end).
-    pub fn get(&self, i: usize) -> bool {
-        i < self.len && self.bits[i / 64] & (1 << (i % 64)) != 0
-    }
-
-    /// Number of void samples.
-    pub fn count(&self) -> u64 {
-        self.count
-    }
-
-    /// Number of samples the mask covers.
-    pub fn len(&self) -> usize {
-        self.len
-    }
-
-    /// Whether the mask covers no samples.
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
-    }
-
-    /// The void samples' indices, ascending; cheap on sparse masks (whole empty words are skipped).
-    pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
-        self.bits.iter().enumerate().flat_map(|(w, &word)| {
-            let mut rest = word;
-            std::iter::from_fn(move || {
-                (rest != 0).then(|| {
-                    let b = rest.trailing_zeros() as usize;
-                    rest &= rest - 1;
-                    w * 64 + b
-                })
-            })
-        })
-    }
-}
+use super::VoidMask;
 
 /// A pyramid level: per cell, the mean of the valid samples under it and how many there are.
 struct Level {
@@ -394,15 +328,24 @@ mod tests {
         assert!(g.iter().all(|&v| v == 42.0), "{g:?}");
     }
 
+    /// `cargo test --release -p relief-server --lib fill_speed -- --ignored --nocapture`
     #[test]
-    fn mask_counts_and_iterates() {
-        let mut m = VoidMask::new(200);
-        for i in [0, 63, 64, 130, 199, 64] {
-            m.set(i);
+    #[ignore = "timing only"]
+    fn fill_speed() {
+        let n = 8193u32;
+        let mut g = crate::dem::synthetic::generate(n, 1, false);
+        let mut voids = VoidMask::new(g.len());
+        // A 1000 x 1000 hole, and every 97th sample.
+        for (i, v) in g.iter_mut().enumerate() {
+            let (x, y) = (i as u32 % n, i as u32 / n);
+            if (3000..4000).contains(&x) && (2000..3000).contains(&y) || i % 97 == 0 {
+                voids.set(i);
+                *v = 0.0;
+            }
         }
-        assert_eq!(m.count(), 5);
-        assert_eq!(m.iter().collect::<Vec<_>>(), vec![0, 63, 64, 130, 199]);
-        assert!(m.get(130) && !m.get(131) && !m.get(10_000));
-        assert_eq!(m.len(), 200);
+        let t = std::time::Instant::now();
+        fill_voids(n, n, &mut g, &voids, false);
+        let s = t.elapsed().as_secs_f64();
+        eprintln!("fill of {} voids in {n}x{n}: {s:.2} s", voids.count());
     }
 }

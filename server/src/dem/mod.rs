@@ -2,22 +2,42 @@
 //! and fill its voids (DESIGN.md section 2).
 //!
 //! - [`geotiff`]: int16, uint16, int32, float32 and float64 GeoTIFFs, with GDAL_NODATA and the
-//!   GeoTIFF spacing tags (geographic grids get metre spacing from their latitude).
+//!   GeoTIFF spacing tags (geographic grids get metre spacing from their latitude on WGS 84).
 //! - [`png`]: 16-bit grayscale PNGs with scale, offset, no-data value and spacing given by flags.
-//! - [`synthetic`]: `synthetic:SIZE[:SEED]`, a deterministic fractal terrain.
-//! - [`fill`]: smooth void filling.
+//! - [`synthetic`]: `synthetic:SIZE[:SEED]`, a deterministic fractal terrain, 10 m spacing.
+//! - [`fill`]: smooth (harmonic) void filling; the [`VoidMask`] keeps where the voids were.
 //!
-//! [`load`] dispatches on the spec, refuses absurd input with a [`DemError`] naming the problem,
-//! and fills voids. The void mask is kept in the [`Dem`].
+//! [`load`] dispatches on the spec, refuses unusable input with a [`DemError`] naming the problem
+//! and the input, and fills voids; the void mask is kept in the [`Dem`]. [`embedded_default`] is
+//! the Mt Fuji crop shipped in `server/data/`.
+//!
+//! What [`finish`] refuses, after a reader has decoded the samples:
+//! - fewer than 2 x 2 samples, or more than [`LoadOptions::max_samples`] (readers check the size
+//!   from the header, before allocating);
+//! - NaN samples, unless the file's GDAL_NODATA tag is `nan`: then NaN marks voids. An undeclared
+//!   NaN is more likely a broken export than a survey gap, so it is reported (with a count and the
+//!   first position) rather than silently filled;
+//! - infinite heights and heights beyond +-[`ABSURD_HEIGHT_M`]: wrong units, or an undeclared
+//!   no-data value such as -32768 or -3.4e38. (An undeclared -9999 passes as a deep trench: it is
+//!   a plausible ocean depth, so Relief does not guess.)
+//! - grids where every sample is void;
+//! - a missing or non-positive ground spacing.
 
+mod error;
 pub mod fill;
 pub mod geotiff;
+mod mask;
+mod noise;
 pub mod png;
 pub mod synthetic;
 
-use std::path::Path;
+pub use error::DemError;
+pub use mask::VoidMask;
 
-/// Samples accepted by default: a little over 16385 x 16385.
+use std::io::{BufRead, BufReader};
+
+/// Samples accepted by default: exactly 16385 x 16385 (2^14 + 1 a side), the largest synthetic
+/// grid. `--max-samples` raises it.
 pub const DEFAULT_MAX_SAMPLES: u64 = 16385 * 16385;
 /// Heights beyond this many metres from sea level are refused as absurd.
 pub const ABSURD_HEIGHT_M: f32 = 20_000.0;
@@ -25,21 +45,23 @@ pub const ABSURD_HEIGHT_M: f32 = 20_000.0;
 /// A height grid in metres, voids filled, with its void mask.
 #[derive(Clone, Debug)]
 pub struct Dem {
-    /// Samples per row.
+    /// Samples per row: the grid's extent east-west.
     pub width: u32,
-    /// Rows; row 0 is north.
+    /// Rows, row 0 north: the grid's extent north-south.
     pub height: u32,
-    /// Ground metres between columns.
+    /// Ground metres between columns, to place samples in world space.
     pub spacing_x: f64,
-    /// Ground metres between rows.
+    /// Ground metres between rows (differs from `spacing_x` on geographic grids).
     pub spacing_y: f64,
-    /// Row-major heights in metres; voids hold filled values.
+    /// Row-major heights in metres, the terrain itself; voids hold filled values, so every
+    /// sample is usable by the LOD engines.
     pub heights: Vec<f32>,
-    /// Which samples were voids in the source.
+    /// Which samples were voids in the source, so that stores and queries can tell measured
+    /// ground from filled ground.
     pub voids: VoidMask,
-    /// What the heights came from, for messages and store metadata.
+    /// What the heights came from (path, `synthetic:` spec), for messages and store metadata.
     pub source: String,
-    /// Coordinate reference system of the source, when known.
+    /// Coordinate reference system of the source (as `EPSG:n`), when known, for metadata.
     pub crs: Option<String>,
 }
 
@@ -48,56 +70,40 @@ impl Dem {
     pub fn is_void(&self, i: usize) -> bool {
         self.voids.get(i)
     }
-}
 
-/// One bit per sample: set where the source had no data.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct VoidMask {
-    /// The bits, 64 samples a word, row-major.
-    bits: Vec<u64>,
-    /// Set bits, kept for reports.
-    count: u64,
-}
-
-impl VoidMask {
-    /// A mask of `n` samples, none void.
-    pub fn new(n: usize) -> VoidMask {
-        VoidMask {
-            bits: vec![0; n.div_ceil(64)],
-            count: 0,
-        }
+    /// The height at column `x`, row `y`.
+    ///
+    /// # Panics
+    /// If (`x`, `y`) is outside the grid.
+    pub fn at(&self, x: u32, y: u32) -> f32 {
+        assert!(
+            x < self.width && y < self.height,
+            "({x}, {y}) outside the grid"
+        );
+        self.heights[y as usize * self.width as usize + x as usize]
     }
 
-    /// Marks sample `i` void.
-    pub fn set(&mut self, i: usize) {
-        let (w, b) = (i / 64, 1u64 << (i % 64));
-        if self.bits[w] & b == 0 {
-            self.bits[w] |= b;
-            self.count += 1;
-        }
-    }
-
-    /// Whether sample `i` is void.
-    pub fn get(&self, i: usize) -> bool {
-        self.bits
-            .get(i / 64)
-            .is_some_and(|w| w & (1 << (i % 64)) != 0)
-    }
-
-    /// Number of void samples.
-    pub fn count(&self) -> u64 {
-        self.count
+    /// Lowest and highest height over the samples that were not voids.
+    pub fn valid_range(&self) -> (f32, f32) {
+        self.heights
+            .iter()
+            .enumerate()
+            .filter(|&(i, _)| !self.voids.get(i))
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), (_, &h)| {
+                (lo.min(h), hi.max(h))
+            })
     }
 }
 
-/// How to read PNG input.
+/// How to read PNG input: a PNG carries 16-bit values, not metres, and no geo tags.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PngOptions {
-    /// Metres per 16-bit value.
+    /// Metres per 16-bit value (`metres = offset + value * scale`), since PNG has no height unit.
     pub scale: f64,
-    /// Metres added to every value.
+    /// Metres added to every value, so that values can encode heights below 0 m.
     pub offset: f64,
-    /// The value that means "no data", if any.
+    /// The value that means "no data", if any (default 0, the convention of the shared test
+    /// PNGs); such samples become voids.
     pub nodata_value: Option<u16>,
 }
 
@@ -114,15 +120,18 @@ impl Default for PngOptions {
 /// Options of [`load`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct LoadOptions {
-    /// Refuse grids with more samples than this.
+    /// Refuse grids with more samples than this (`--max-samples`), checked from the header
+    /// before anything is allocated, so that a hostile or mistaken input cannot exhaust memory.
     pub max_samples: u64,
-    /// Ground metres between columns, overriding the file's (required for PNG).
+    /// Ground metres between columns, overriding the file's; required where the file has none
+    /// (PNG, or a GeoTIFF without geo tags).
     pub spacing_x: Option<f64>,
-    /// Ground metres between rows, overriding the file's (required for PNG).
+    /// Ground metres between rows, overriding the file's; required where the file has none.
     pub spacing_y: Option<f64>,
-    /// PNG decoding.
+    /// How to turn PNG values into metres.
     pub png: PngOptions,
-    /// Show progress bars on long work.
+    /// Show progress bars on long work (synthetic generation, void filling of big grids); tests
+    /// and servers turn it off.
     pub progress: bool,
 }
 
@@ -138,122 +147,19 @@ impl Default for LoadOptions {
     }
 }
 
-/// Why a DEM could not be loaded.
-#[derive(Debug, thiserror::Error)]
-pub enum DemError {
-    /// The file could not be opened or read.
-    #[error("{path}: cannot read the file")]
-    Io {
-        /// The file.
-        path: String,
-        /// What the OS said.
-        source: std::io::Error,
-    },
-    /// The file is not a valid image of its kind (truncated or corrupt).
-    #[error("{path}: not a readable {kind}: {detail}")]
-    Corrupt {
-        /// The file.
-        path: String,
-        /// GeoTIFF or PNG.
-        kind: &'static str,
-        /// The decoder's message.
-        detail: String,
-    },
-    /// The samples are of a kind Relief does not read.
-    #[error("{path}: unsupported sample format: {detail}")]
-    Unsupported {
-        /// The file.
-        path: String,
-        /// What was found.
-        detail: String,
-    },
-    /// Fewer than 2 x 2 samples.
-    #[error("{input}: {width}x{height} samples is too small; at least 2x2 are needed")]
-    TooSmall {
-        /// The input.
-        input: String,
-        /// Columns.
-        width: u32,
-        /// Rows.
-        height: u32,
-    },
-    /// More samples than the configured limit.
-    #[error(
-        "{input}: {width}x{height} = {samples} samples exceeds the limit of {limit}; raise it with --max-samples"
-    )]
-    TooLarge {
-        /// The input.
-        input: String,
-        /// Columns.
-        width: u32,
-        /// Rows.
-        height: u32,
-        /// Their product.
-        samples: u64,
-        /// The limit.
-        limit: u64,
-    },
-    /// Every sample is a void.
-    #[error("{0}: every sample is no-data; there is no terrain to build")]
-    AllVoid(String),
-    /// NaN samples that are not declared as no-data.
-    #[error(
-        "{input}: {count} NaN samples (first at column {col}, row {row}) and no GDAL_NODATA tag declaring NaN as no-data"
-    )]
-    NaN {
-        /// The input.
-        input: String,
-        /// How many.
-        count: u64,
-        /// Column of the first.
-        col: u32,
-        /// Row of the first.
-        row: u32,
-    },
-    /// Infinite or absurd heights.
-    #[error(
-        "{input}: height {value} m at column {col}, row {row} is not a plausible terrain height (limit +-20000 m)"
-    )]
-    Absurd {
-        /// The input.
-        input: String,
-        /// The value.
-        value: f32,
-        /// Its column.
-        col: u32,
-        /// Its row.
-        row: u32,
-    },
-    /// No usable ground spacing.
-    #[error("{input}: {detail}")]
-    Spacing {
-        /// The input.
-        input: String,
-        /// What is missing or wrong.
-        detail: String,
-    },
-    /// A `synthetic:` spec that does not parse.
-    #[error("bad synthetic spec {spec:?}: {detail}")]
-    BadSpec {
-        /// The spec.
-        spec: String,
-        /// What is wrong.
-        detail: String,
-    },
-}
-
 /// Raw samples from a reader, before checks and void filling.
 pub struct RawGrid {
     /// Samples per row.
     pub width: u32,
-    /// Rows.
+    /// Rows, row 0 north.
     pub height: u32,
-    /// Row-major heights; voids may hold anything.
+    /// Row-major heights in metres; voids may hold anything.
     pub heights: Vec<f32>,
-    /// Void samples.
+    /// Samples the file marked as no-data.
     pub voids: VoidMask,
-    /// Spacing from the file, if it has one.
-    pub spacing: Option<(f64, f64)>,
+    /// Ground spacing (x, y) in metres from the file, or why the file gives none (completed
+    /// into an error message unless the caller overrides the spacing).
+    pub spacing: Result<(f64, f64), String>,
     /// CRS from the file, if known.
     pub crs: Option<String>,
     /// Whether NaN samples count as voids (the file declared NaN as no-data).
@@ -282,93 +188,123 @@ pub fn check_size(source: &str, w: u32, h: u32, opts: &LoadOptions) -> Result<()
     Ok(())
 }
 
+/// File formats [`load`] reads.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Format {
+    Tiff,
+    Png,
+}
+
+/// The format of a file: by its first bytes when they are a TIFF or PNG signature (so that a
+/// misnamed file still loads), else by extension.
+fn sniff(path: &str, head: &[u8]) -> Option<Format> {
+    if head.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return Some(Format::Png);
+    }
+    if head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") {
+        return Some(Format::Tiff);
+    }
+    // BigTIFF (version 43) is a TIFF too; the decoder reads it.
+    if head.starts_with(b"II+\0") || head.starts_with(b"MM\0+") {
+        return Some(Format::Tiff);
+    }
+    let ext = std::path::Path::new(path)
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match ext.as_deref() {
+        Some("png") => Some(Format::Png),
+        Some("tif" | "tiff" | "gtiff") => Some(Format::Tiff),
+        _ => None,
+    }
+}
+
 /// Loads the DEM named by `spec`: a `synthetic:SIZE[:SEED]` spec, or a GeoTIFF or PNG path
-/// (chosen by extension, else by the file's first bytes).
+/// (recognised by its first bytes, else by extension), and fills its voids.
 pub fn load(spec: &str, opts: &LoadOptions) -> Result<Dem, DemError> {
     if let Some(rest) = spec.strip_prefix("synthetic:") {
         return synthetic::load(spec, rest, opts);
     }
-    let path = Path::new(spec);
     let io = |source| DemError::Io {
         path: spec.into(),
         source,
     };
-    let bytes = std::fs::read(path).map_err(io)?;
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let is_png = match ext.as_deref() {
-        Some("png") => true,
-        Some("tif" | "tiff") => false,
-        _ => bytes.starts_with(b"\x89PNG"),
-    };
-    let raw = if is_png {
-        png::read(spec, &bytes, opts)?
-    } else {
-        geotiff::read(spec, &bytes, opts)?
+    let mut file = BufReader::new(std::fs::File::open(spec).map_err(io)?);
+    let head = file.fill_buf().map_err(io)?;
+    let raw = match sniff(spec, head) {
+        Some(Format::Png) => png::read(spec, file, opts)?,
+        Some(Format::Tiff) => geotiff::read(spec, file, opts)?,
+        None => {
+            return Err(DemError::UnknownFormat { path: spec.into() });
+        }
     };
     finish(spec, raw, opts)
 }
 
-/// Checks raw samples, applies spacing overrides and fills voids.
+/// Checks raw samples (see the module docs), applies spacing overrides and fills voids.
 pub fn finish(source: &str, mut raw: RawGrid, opts: &LoadOptions) -> Result<Dem, DemError> {
     check_size(source, raw.width, raw.height, opts)?;
-    let mut nan = (0u64, 0usize);
+    let n = raw.width as usize * raw.height as usize;
+    if raw.heights.len() != n || raw.voids.len() != n {
+        return Err(DemError::Unsupported {
+            path: source.into(),
+            detail: format!(
+                "{} samples for a {}x{} grid",
+                raw.heights.len(),
+                raw.width,
+                raw.height
+            ),
+        });
+    }
+    let at = |i: usize| {
+        (
+            (i % raw.width as usize) as u32,
+            (i / raw.width as usize) as u32,
+        )
+    };
+    let (mut nan, mut first_nan) = (0u64, 0usize);
+    let (mut absurd, mut first_absurd) = (0u64, 0usize);
     for (i, h) in raw.heights.iter().enumerate() {
-        if raw.voids.get(i) {
-            continue;
-        }
         if h.is_nan() {
-            if nan.0 == 0 {
-                nan.1 = i;
+            if !raw.voids.get(i) {
+                first_nan = if nan == 0 { i } else { first_nan };
+                nan += 1;
             }
-            nan.0 += 1;
-        } else if h.is_infinite() || h.abs() > ABSURD_HEIGHT_M {
-            return Err(DemError::Absurd {
-                input: source.into(),
-                value: *h,
-                col: (i % raw.width as usize) as u32,
-                row: (i / raw.width as usize) as u32,
-            });
+        } else if h.abs() > ABSURD_HEIGHT_M && !raw.voids.get(i) {
+            first_absurd = if absurd == 0 { i } else { first_absurd };
+            absurd += 1;
         }
     }
-    if nan.0 > 0 {
-        if !raw.nan_is_void {
-            return Err(DemError::NaN {
-                input: source.into(),
-                count: nan.0,
-                col: (nan.1 % raw.width as usize) as u32,
-                row: (nan.1 / raw.width as usize) as u32,
-            });
-        }
-        for i in 0..raw.heights.len() {
-            if raw.heights[i].is_nan() {
+    if nan > 0 && !raw.nan_is_void {
+        let (col, row) = at(first_nan);
+        return Err(DemError::NaN {
+            input: source.into(),
+            count: nan,
+            col,
+            row,
+        });
+    }
+    if absurd > 0 {
+        let (col, row) = at(first_absurd);
+        return Err(DemError::Absurd {
+            input: source.into(),
+            count: absurd,
+            value: raw.heights[first_absurd],
+            col,
+            row,
+        });
+    }
+    if nan > 0 {
+        for (i, h) in raw.heights.iter().enumerate() {
+            if h.is_nan() {
                 raw.voids.set(i);
             }
         }
     }
-    if raw.voids.count() == raw.heights.len() as u64 {
+    if raw.voids.count() == n as u64 {
         return Err(DemError::AllVoid(source.into()));
     }
-    let spacing = match (opts.spacing_x, opts.spacing_y, raw.spacing) {
-        (Some(x), Some(y), _) => (x, y),
-        (Some(x), None, Some((_, y))) => (x, y),
-        (None, Some(y), Some((x, _))) => (x, y),
-        (None, None, Some(s)) => s,
-        _ => {
-            return Err(DemError::Spacing {
-                input: source.into(),
-                detail: "no ground spacing: give --spacing-x and --spacing-y in metres".into(),
-            });
-        }
-    };
-    if !(spacing.0.is_finite() && spacing.1.is_finite() && spacing.0 > 0.0 && spacing.1 > 0.0) {
-        return Err(DemError::Spacing {
-            input: source.into(),
-            detail: format!("spacing {} x {} m must be positive", spacing.0, spacing.1),
-        });
-    }
+    let spacing = spacing(source, &raw.spacing, opts)?;
     fill::fill_voids(
         raw.width,
         raw.height,
@@ -388,14 +324,43 @@ pub fn finish(source: &str, mut raw: RawGrid, opts: &LoadOptions) -> Result<Dem,
     })
 }
 
+/// The ground spacing: the caller's overrides, else the file's, checked to be positive.
+fn spacing(
+    source: &str,
+    file: &Result<(f64, f64), String>,
+    opts: &LoadOptions,
+) -> Result<(f64, f64), DemError> {
+    let err = |detail: String| DemError::Spacing {
+        input: source.into(),
+        detail,
+    };
+    let s = match (opts.spacing_x, opts.spacing_y, file) {
+        (Some(x), Some(y), _) => (x, y),
+        (x, y, Ok((fx, fy))) => (x.unwrap_or(*fx), y.unwrap_or(*fy)),
+        (_, _, Err(why)) => {
+            return Err(err(format!(
+                "no ground spacing: {why}; give --spacing-x and --spacing-y in metres"
+            )));
+        }
+    };
+    if !(s.0.is_finite() && s.1.is_finite() && s.0 > 0.0 && s.1 > 0.0) {
+        return Err(err(format!(
+            "ground spacing {} x {} m must be positive and finite",
+            s.0, s.1
+        )));
+    }
+    Ok(s)
+}
+
 /// The crop of Mt Fuji shipped with the server (see `server/data/README.md`).
 pub const EMBEDDED_FUJI: &[u8] = include_bytes!("../../data/fuji_crop.tif");
 
-/// The embedded default terrain: the Mt Fuji crop, decoded and void-filled.
+/// The embedded default terrain: the 257 x 193 Mt Fuji crop, decoded and void-filled.
 pub fn embedded_default() -> Result<Dem, DemError> {
+    let name = "embedded:fuji_crop.tif";
     let opts = LoadOptions::default();
-    let raw = geotiff::read("embedded:fuji_crop.tif", EMBEDDED_FUJI, &opts)?;
-    finish("embedded:fuji_crop.tif", raw, &opts)
+    let raw = geotiff::read(name, std::io::Cursor::new(EMBEDDED_FUJI), &opts)?;
+    finish(name, raw, &opts)
 }
 
 #[cfg(test)]

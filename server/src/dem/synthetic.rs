@@ -1,23 +1,49 @@
-//! `synthetic:SIZE[:SEED]`: a deterministic fractal terrain of SIZE x SIZE samples, 10 m apart,
-//! with mountain ranges, carved valleys and flat plains, for tests and benchmarks at any size up
-//! to 16385.
+//! `synthetic:SIZE[:SEED]`: a deterministic fractal terrain of SIZE x SIZE samples (2..=16385,
+//! default seed 1), 10 m apart, with mountain ranges, valleys and plains, for tests and benchmarks
+//! at any size.
 //!
-//! Value noise on an integer-hashed lattice, summed over octaves (fBm). A ridged sum shapes the
-//! mountains, a low-frequency mask decides where mountains rise and where plains lie, and a
-//! second low-frequency field carves valley floors along its zero crossings. Only integer hashing
-//! and f32 arithmetic in a fixed order are used, so a seed gives bit-identical heights on every
-//! machine.
+//! The terrain sums gradient-noise fields (`dem/noise.rs`):
+//! - a slow **mask** decides where mountains rise (1) and where plains lie (0). Its threshold is
+//!   the 40th percentile of the mask over the grid, so every grid, whatever its size and seed, is
+//!   about 40% plains and 60% mountains;
+//! - a **ridged** multifractal (Musgrave's: octaves of `1 - |noise|`, squared, each weighted by
+//!   the one before so that detail gathers on the crests) shapes the mountains;
+//! - a slow **valley** field carves valley floors along its zero lines through the mountains;
+//! - gentle **hills** everywhere, and faint texture on the plains.
+//!
+//! Each octave has its own lattice offset, so that lattice lines of different octaves do not
+//! coincide (aligned lattices show as a grid pattern).
+//!
+//! Features scale with the grid: the largest mountains are a quarter of the grid across (at least
+//! 32 and at most 1024 samples, 10 km), and heights scale with them, so slopes look alike at every
+//! size: from 4097 samples up, mountains rise about 2,000 m above plains at 150..400 m, and smaller
+//! grids are the same kind of landscape in miniature. Octaves finer than 4 samples are dropped, as
+//! they would only alias into spikes.
+//!
+//! Determinism and speed: see `dem/noise.rs`. The fields are combined in loops over a row, one
+//! step of the formula at a time, which the compiler vectorises; every sample sees the same
+//! operations in the same order, so a seed gives bit-identical heights on every machine.
 
+use super::noise::{Field, RowSampler};
 use super::{Dem, DemError, LoadOptions, RawGrid, VoidMask, check_size};
+use std::ops::Range;
 
 /// Ground spacing of synthetic terrains, metres.
 pub const SPACING_M: f64 = 10.0;
-/// Largest size accepted.
+/// Largest size accepted (2^14 + 1).
 pub const MAX_SIZE: u32 = 16385;
-/// Wavelength of the largest mountain features, in samples.
-const BASE_WAVELENGTH: f32 = 1024.0;
+/// Wavelength of the largest mountains on big grids, samples.
+const MAX_WAVELENGTH: f32 = 1024.0;
+/// Wavelength of the largest mountains on tiny grids, samples.
+const MIN_WAVELENGTH: f32 = 32.0;
+/// Finest wavelength an octave may have, samples.
+const FINEST_WAVELENGTH: f32 = 4.0;
+/// Share of the grid below the mountain mask's threshold.
+const PLAINS_SHARE: f32 = 0.4;
+/// Half-width of the mask's transition from plains to mountains, in noise units.
+const MASK_RAMP: f32 = 0.08;
 
-/// Parses `SIZE[:SEED]` and generates the terrain.
+/// Parses `SIZE[:SEED]` (the part of `spec` after `synthetic:`) and generates the terrain.
 pub fn load(spec: &str, rest: &str, opts: &LoadOptions) -> Result<Dem, DemError> {
     let bad = |detail: String| DemError::BadSpec {
         spec: spec.into(),
@@ -50,42 +76,161 @@ pub fn load(spec: &str, rest: &str, opts: &LoadOptions) -> Result<Dem, DemError>
         height: size,
         voids: VoidMask::new(heights.len()),
         heights,
-        spacing: Some((SPACING_M, SPACING_M)),
+        spacing: Ok((SPACING_M, SPACING_M)),
         crs: None,
         nan_is_void: false,
     };
     super::finish(spec, raw, opts)
 }
 
-/// The heights of `synthetic:SIZE:SEED`, row-major, metres.
-pub fn generate(size: u32, seed: u32, progress: bool) -> Vec<f32> {
-    let n = size as usize;
-    let mut out = vec![0.0f32; n * n];
-    let bar = crate::bench::progress_bar(progress && n * n > 1 << 22, n as u64, "synthetic");
-    for (r, row) in out.chunks_mut(n).enumerate() {
-        for (c, h) in row.iter_mut().enumerate() {
-            *h = height(c as f32, r as f32, seed);
-        }
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    out
+/// Everything that defines `synthetic:SIZE:SEED`.
+struct Terrain {
+    /// Height scale, 1 at [`MAX_WAVELENGTH`]: heights shrink with the features on small grids,
+    /// so that slopes stay those of real terrain.
+    relief: f32,
+    /// The fields: the mask, the valley field, then the octaves of `hills`, `ridges`, `plains`.
+    fields: Vec<Field>,
+    /// Octaves of the hills, rising frequency.
+    hills: Range<usize>,
+    /// Octaves of the ridged mountains, rising frequency.
+    ridges: Range<usize>,
+    /// Octaves of the plains' texture, rising frequency.
+    plains: Range<usize>,
+    /// Mask value where plains turn to mountains: the grid's [`PLAINS_SHARE`] quantile.
+    mask_level: f32,
 }
 
-fn height(x: f32, y: f32, seed: u32) -> f32 {
-    let u = x / BASE_WAVELENGTH;
-    let v = y / BASE_WAVELENGTH;
-    // Where mountains rise (1) and plains lie (0).
-    let mask = smoothstep(0.38, 0.62, noise(u * 0.35, v * 0.35, seed ^ 0xA5A5));
-    // Valley floors along the mid-level line of a slow field.
-    let valley = ((noise(u * 0.7 + 3.1, v * 0.7 - 1.7, seed ^ 0x5151) - 0.5).abs() * 2.0).min(1.0);
-    let carve = 0.35 + 0.65 * smoothstep(0.0, 0.22, valley);
-    let hills = fbm(u * 2.0, v * 2.0, seed ^ 0x77, 5);
-    let mountains = ridged(u, v, seed, 9);
-    150.0
-        + 220.0 * hills
-        + mask * 2600.0 * mountains * mountains * carve
-        + (1.0 - mask) * 25.0 * fbm(u * 16.0, v * 16.0, seed ^ 0x33, 3)
+/// Index of the mask and valley fields in [`Terrain::fields`].
+const MASK: usize = 0;
+const VALLEY: usize = 1;
+
+impl Terrain {
+    fn new(size: u32, seed: u32) -> Terrain {
+        let wavelength = (size as f32 / 4.0).clamp(MIN_WAVELENGTH, MAX_WAVELENGTH);
+        let mut fields = Vec::new();
+        // Up to `max` octaves from `base` cycles per wavelength, none finer than
+        // FINEST_WAVELENGTH, each on its own seed and lattice offset.
+        let mut octaves = |base: f32, max: u32, seed: u32| {
+            let start = fields.len();
+            for o in 0..max {
+                let cycles = base * (1u32 << o) as f32;
+                if o > 0 && wavelength / cycles < FINEST_WAVELENGTH {
+                    break;
+                }
+                let k = fields.len() as f32;
+                fields.push(Field {
+                    scale: cycles / wavelength,
+                    off_x: 0.29 + 7.31 * k,
+                    off_y: 0.671 + 3.17 * k,
+                    seed: seed.wrapping_add(o * 104_729),
+                });
+            }
+            start..fields.len()
+        };
+        octaves(0.35, 1, seed ^ 0xA5A5);
+        octaves(0.7, 1, seed ^ 0x5151);
+        let hills = octaves(2.0, 5, seed ^ 0x77);
+        let ridges = octaves(1.0, 9, seed);
+        let plains = octaves(16.0, 3, seed ^ 0x33);
+        // The mask's quantile over a 65 x 65 lattice of the grid.
+        let step = (size.max(1) - 1) as f32 / 64.0;
+        let mut mask: Vec<f32> = (0..65 * 65)
+            .map(|i| {
+                fields[MASK].at(
+                    ((i % 65) as f32 * step).floor(),
+                    ((i / 65) as f32 * step).floor(),
+                )
+            })
+            .collect();
+        mask.sort_by(f32::total_cmp);
+        Terrain {
+            relief: wavelength / MAX_WAVELENGTH,
+            mask_level: mask[(PLAINS_SHARE * (mask.len() - 1) as f32) as usize],
+            fields,
+            hills,
+            ridges,
+            plains,
+        }
+    }
+}
+
+/// Scratch rows of [`combine_rows`], one value per sample of the row.
+#[derive(Default)]
+struct Scratch {
+    /// Where mountains rise (1) and plains lie (0).
+    mask: Vec<f32>,
+    /// Valley carving factor, 0.3 on valley floors to 1 away from them.
+    carve: Vec<f32>,
+    /// Hills fBm, about [-0.7, 0.7].
+    hills: Vec<f32>,
+    /// Plains texture fBm, about [-0.7, 0.7].
+    plains: Vec<f32>,
+    /// Ridged multifractal in [0, 1].
+    mountains: Vec<f32>,
+    /// The ridged sum's running weight (finer octaves count where coarser ones are high).
+    weight: Vec<f32>,
+}
+
+/// Heights in metres of the `out.len()` samples of a row from the fields' values `n`
+/// (field-major: field `k` is `n[k * len..(k + 1) * len]`).
+fn combine_rows(t: &Terrain, n: &[f32], out: &mut [f32], s: &mut Scratch) {
+    let len = out.len();
+    let f = |k: usize| &n[k * len..(k + 1) * len];
+    for v in [&mut s.mask, &mut s.carve, &mut s.mountains, &mut s.weight] {
+        v.resize(len, 0.0);
+    }
+    let (lo, hi) = (t.mask_level - MASK_RAMP, t.mask_level + MASK_RAMP);
+    for (m, &v) in s.mask.iter_mut().zip(f(MASK)) {
+        *m = smoothstep(lo, hi, v);
+    }
+    for (c, &v) in s.carve.iter_mut().zip(f(VALLEY)) {
+        *c = 0.3 + 0.7 * smoothstep(0.0, 0.12, v.abs());
+    }
+    fbm(t.hills.clone().map(f), &mut s.hills, len);
+    fbm(t.plains.clone().map(f), &mut s.plains, len);
+    s.mountains.fill(0.0);
+    s.weight.fill(1.0);
+    let (mut amp, mut norm) = (1.0f32, 0.0f32);
+    for k in t.ridges.clone() {
+        for ((sum, w), &v) in s.mountains.iter_mut().zip(&mut s.weight).zip(f(k)) {
+            let r = (1.0 - 1.4 * v.abs()).max(0.0);
+            let ridge = r * r * *w;
+            *w = (ridge * 1.6).clamp(0.0, 1.0);
+            *sum += amp * ridge;
+        }
+        norm += amp;
+        amp *= 0.5;
+    }
+    for m in &mut s.mountains {
+        *m /= norm;
+    }
+    let parts = s.mask.iter().zip(&s.carve).zip(&s.hills).zip(&s.plains);
+    for ((h, &m), (((&mask, &carve), &hills), &plains)) in
+        out.iter_mut().zip(&s.mountains).zip(parts)
+    {
+        *h = 150.0
+            + t.relief
+                * (120.0 * (hills + 0.7)
+                    + mask * 2600.0 * m * m * carve
+                    + (1.0 - mask) * 8.0 * plains);
+    }
+}
+
+/// Octaves summed with halving amplitudes and normalised, into `dst` (`len` samples).
+fn fbm<'a>(octaves: impl Iterator<Item = &'a [f32]>, dst: &mut Vec<f32>, len: usize) {
+    dst.clear();
+    dst.resize(len, 0.0);
+    let (mut amp, mut norm) = (1.0f32, 0.0f32);
+    for o in octaves {
+        for (d, &v) in dst.iter_mut().zip(o) {
+            *d += amp * v;
+        }
+        norm += amp;
+        amp *= 0.5;
+    }
+    for d in dst.iter_mut() {
+        *d /= norm;
+    }
 }
 
 fn smoothstep(a: f32, b: f32, t: f32) -> f32 {
@@ -93,77 +238,185 @@ fn smoothstep(a: f32, b: f32, t: f32) -> f32 {
     t * t * (3.0 - 2.0 * t)
 }
 
-fn fbm(u: f32, v: f32, seed: u32, octaves: u32) -> f32 {
-    let (mut sum, mut amp, mut norm, mut f) = (0.0, 1.0, 0.0, 1.0);
-    for o in 0..octaves {
-        sum += amp * noise(u * f, v * f, seed.wrapping_add(o * 7919));
-        norm += amp;
-        amp *= 0.5;
-        f *= 2.0;
+/// The heights of `synthetic:SIZE:SEED`, row-major, metres.
+pub fn generate(size: u32, seed: u32, progress: bool) -> Vec<f32> {
+    let n = size as usize;
+    let mut out = vec![0.0f32; n * n];
+    if n == 0 {
+        return out;
     }
-    sum / norm
-}
-
-/// Ridged multifractal: sharp crests where the noise crosses its mid-level, finer octaves
-/// weighted by the coarser ones so that detail gathers on the ridges.
-fn ridged(u: f32, v: f32, seed: u32, octaves: u32) -> f32 {
-    let (mut sum, mut amp, mut norm, mut f, mut weight) = (0.0, 1.0, 0.0, 1.0, 1.0f32);
-    for o in 0..octaves {
-        let n = 1.0 - (2.0 * noise(u * f, v * f, seed.wrapping_add(o * 104_729)) - 1.0).abs();
-        let s = n * n * weight;
-        weight = (s * 1.6).clamp(0.0, 1.0);
-        sum += amp * s;
-        norm += amp;
-        amp *= 0.5;
-        f *= 2.0;
+    let bar = crate::bench::progress_bar(progress && n * n > 1 << 22, n as u64, "synthetic");
+    let t = Terrain::new(size, seed);
+    let mut samplers: Vec<RowSampler> = t.fields.iter().map(|&f| RowSampler::new(f, n)).collect();
+    let mut rows = vec![0.0f32; t.fields.len() * n];
+    let mut scratch = Scratch::default();
+    for (y, line) in out.chunks_mut(n).enumerate() {
+        for (s, row) in samplers.iter_mut().zip(rows.chunks_mut(n)) {
+            s.row(y, row);
+        }
+        combine_rows(&t, &rows, line, &mut scratch);
+        bar.inc(1);
     }
-    sum / norm
-}
-
-/// Value noise in [0, 1): quintic interpolation of hashed lattice values.
-fn noise(u: f32, v: f32, seed: u32) -> f32 {
-    let (fx, fy) = (u.floor(), v.floor());
-    let (ix, iy) = (fx as i32, fy as i32);
-    let (tx, ty) = (fade(u - fx), fade(v - fy));
-    let a = lattice(ix, iy, seed);
-    let b = lattice(ix + 1, iy, seed);
-    let c = lattice(ix, iy + 1, seed);
-    let d = lattice(ix + 1, iy + 1, seed);
-    let top = a + (b - a) * tx;
-    let bottom = c + (d - c) * tx;
-    top + (bottom - top) * ty
-}
-
-fn fade(t: f32) -> f32 {
-    t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
-}
-
-fn lattice(x: i32, y: i32, seed: u32) -> f32 {
-    let mut h = (x as u32).wrapping_mul(0x27D4_EB2D)
-        ^ (y as u32).wrapping_mul(0x1656_67B1)
-        ^ seed.wrapping_mul(0x9E37_79B9);
-    h ^= h >> 15;
-    h = h.wrapping_mul(0x85EB_CA6B);
-    h ^= h >> 13;
-    h = h.wrapping_mul(0xC2B2_AE35);
-    h ^= h >> 16;
-    (h >> 8) as f32 / (1u32 << 24) as f32
+    bar.finish_and_clear();
+    out
 }
 
 #[cfg(test)]
-mod timing {
+mod tests {
+    use super::*;
+
+    /// The height at one sample, straight from the definition: the oracle of [`generate`].
+    fn reference(t: &Terrain, x: u32, y: u32) -> f32 {
+        let n: Vec<f32> = t.fields.iter().map(|f| f.at(x as f32, y as f32)).collect();
+        let mut h = [0.0];
+        combine_rows(t, &n, &mut h, &mut Scratch::default());
+        h[0]
+    }
+
+    #[test]
+    fn row_generation_matches_the_per_sample_definition_bit_for_bit() {
+        for (size, seed) in [(300u32, 9u32), (37, 1), (4097, 2)] {
+            let g = generate(size, seed, false);
+            let t = Terrain::new(size, seed);
+            for y in (0..size).step_by(size as usize / 13) {
+                for x in (0..size).step_by(size as usize / 300 + 1) {
+                    let (a, b) = (g[(y * size + x) as usize], reference(&t, x, y));
+                    assert_eq!(a.to_bits(), b.to_bits(), "{size}: ({x}, {y}): {a} vs {b}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn same_seed_same_terrain_other_seed_other_terrain() {
+        let opts = LoadOptions::default();
+        let a = crate::dem::load("synthetic:257:3", &opts).unwrap();
+        let b = crate::dem::load("synthetic:257:3", &opts).unwrap();
+        let c = crate::dem::load("synthetic:257:4", &opts).unwrap();
+        assert_eq!(a.heights, b.heights);
+        assert_ne!(a.heights, c.heights);
+        let d = crate::dem::load("synthetic:257", &opts).unwrap();
+        assert_eq!(d.heights, generate(257, 1, false), "default seed is 1");
+        assert_eq!((d.spacing_x, d.spacing_y, d.voids.count()), (10.0, 10.0, 0));
+    }
+
+    /// Locks the terrain's exact bits: a change of formula, or a platform that computes
+    /// differently, shows here. Update the constant only for an intended change of terrain.
+    #[test]
+    fn golden_checksum() {
+        let h = generate(129, 1, false);
+        let mut crc = crc32fast::Hasher::new();
+        h.iter()
+            .for_each(|v| crc.update(&v.to_bits().to_le_bytes()));
+        assert_eq!(crc.finalize(), 3_489_088_650, "synthetic:129:1 changed");
+    }
+
+    #[test]
+    fn size_two_works() {
+        let d = crate::dem::load("synthetic:2", &LoadOptions::default()).unwrap();
+        assert_eq!((d.width, d.height, d.heights.len()), (2, 2, 4));
+        assert!(d.heights.iter().all(|h| h.is_finite()));
+    }
+
+    #[test]
+    fn size_1000_looks_like_terrain() {
+        let d = crate::dem::load("synthetic:1000", &LoadOptions::default()).unwrap();
+        let (lo, hi) = d.valid_range();
+        // 10 km of terrain: features 2.5 km across, about 600 m of relief.
+        assert!(
+            lo >= 100.0 && hi <= 3500.0 && hi - lo > 400.0,
+            "heights {lo}..{hi}"
+        );
+        let n = d.heights.len() as f64;
+        let mean = d.heights.iter().map(|&h| h as f64).sum::<f64>() / n;
+        let sd = (d
+            .heights
+            .iter()
+            .map(|&h| (h as f64 - mean).powi(2))
+            .sum::<f64>()
+            / n)
+            .sqrt();
+        assert!(sd > 50.0, "standard deviation {sd} m");
+        let (flat, steep) = slope_shares(&d);
+        assert!(
+            flat > 0.15 && steep > 0.03,
+            "flat {flat:.3}, steep {steep:.3}"
+        );
+    }
+
+    /// Shares of samples (on a 3-sample lattice) with slopes under 3% and over 50%.
+    fn slope_shares(d: &Dem) -> (f64, f64) {
+        let (mut flat, mut steep, mut total) = (0usize, 0usize, 0usize);
+        for y in (1..d.height - 1).step_by(3) {
+            for x in (1..d.width - 1).step_by(3) {
+                let gx = (d.at(x + 1, y) - d.at(x - 1, y)) / 20.0;
+                let gy = (d.at(x, y + 1) - d.at(x, y - 1)) / 20.0;
+                let slope = gx.hypot(gy);
+                flat += (slope < 0.03) as usize;
+                steep += (slope > 0.5) as usize;
+                total += 1;
+            }
+        }
+        (flat as f64 / total as f64, steep as f64 / total as f64)
+    }
+
+    #[test]
+    fn every_seed_and_size_mixes_plains_and_mountains() {
+        for size in [257, 600] {
+            for seed in 1..=5 {
+                let d =
+                    crate::dem::load(&format!("synthetic:{size}:{seed}"), &LoadOptions::default())
+                        .unwrap();
+                let (flat, steep) = slope_shares(&d);
+                assert!(
+                    flat > 0.1 && steep > 0.01,
+                    "{size}:{seed}: flat {flat:.3}, steep {steep:.3}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn bad_specs_are_refused() {
+        let opts = LoadOptions::default();
+        for spec in [
+            "synthetic:",
+            "synthetic:x",
+            "synthetic:5:y",
+            "synthetic:5:1:2",
+            "synthetic:20000",
+        ] {
+            let e = crate::dem::load(spec, &opts).unwrap_err();
+            assert!(matches!(e, DemError::BadSpec { .. }), "{spec}: {e}");
+        }
+        for spec in ["synthetic:0", "synthetic:1"] {
+            let e = crate::dem::load(spec, &opts).unwrap_err();
+            assert!(matches!(e, DemError::TooSmall { .. }), "{spec}: {e}");
+        }
+        let small = LoadOptions {
+            max_samples: 1000,
+            ..LoadOptions::default()
+        };
+        let e = crate::dem::load("synthetic:40", &small).unwrap_err();
+        assert!(e.to_string().contains("--max-samples"), "{e}");
+    }
+
+    /// `cargo test --release -p relief-server --lib synthetic_speed -- --ignored --nocapture`
     #[test]
     #[ignore = "timing only"]
-    fn speed_4097() {
-        let t = std::time::Instant::now();
-        let h = super::generate(4097, 1, false);
-        let s = t.elapsed().as_secs_f64();
-        let (lo, hi) = h
-            .iter()
-            .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
-        eprintln!(
-            "synthetic:4097 {s:.2} s, {:.1} Msamples/s, {lo}..{hi}",
-            4097.0 * 4097.0 / s / 1e6
-        );
+    fn synthetic_speed() {
+        for size in [4097u32, 16385] {
+            let t = std::time::Instant::now();
+            let h = generate(size, 1, false);
+            let s = t.elapsed().as_secs_f64();
+            let (lo, hi) = h
+                .iter()
+                .fold((f32::MAX, f32::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+            let m = size as f64 * size as f64 / 1e6;
+            eprintln!(
+                "synthetic:{size}: {s:.2} s, {:.1} M samples/s, {lo}..{hi} m",
+                m / s
+            );
+        }
     }
 }

@@ -32,8 +32,8 @@ use relief_proto::view::{BoxView, ViewState};
 /// Distance bands: band `b` holds groups whose boxes lie within `2^b` metres of the eye.
 const BANDS: usize = 48;
 /// Buckets per band's wheel; a bucket spans `2^b / BUCKETS_PER_DISTANCE` metres of odometer.
-const WHEEL: u64 = 64;
-const BUCKETS_PER_DISTANCE: f64 = 16.0;
+const WHEEL: u64 = 256;
+const BUCKETS_PER_DISTANCE: f64 = 64.0;
 /// Safety factor on every slack, against rounding in the bounds.
 const SLACK_SAFETY: f64 = 0.98;
 /// A rotation moves any vector by at most this factor times the largest move of the basis vectors.
@@ -238,7 +238,8 @@ impl VertexSession {
             if engine.screen_error(view, NodeId::ROOT) > p.tau {
                 let _ = self.cut.split(shape, NodeId::ROOT);
                 delta.splits.push(engine.split_payload(NodeId::ROOT));
-                self.file(engine, NodeId::ROOT, 0.0, 0);
+                self.process(engine, view, p, NodeId::ROOT, &mut delta, stats);
+                delta.canonicalize();
             }
             delta.digest = self.cut.digest();
             return delta;

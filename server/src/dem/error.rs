@@ -1,0 +1,126 @@
+//! [`DemError`]: why a DEM could not be loaded, one variant per problem, each message naming the
+//! input and what to do about it where there is something to do.
+
+use super::ABSURD_HEIGHT_M;
+
+/// Why a DEM could not be loaded. Each message names the input and the problem.
+#[derive(Debug, thiserror::Error)]
+pub enum DemError {
+    /// The file could not be opened or read.
+    #[error("{path}: cannot read the file")]
+    Io {
+        /// The file.
+        path: String,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// The file is neither a TIFF nor a PNG, by extension or by its first bytes.
+    #[error(
+        "{path}: unknown file format; Relief reads GeoTIFF (.tif, .tiff), 16-bit grayscale PNG (.png) and synthetic:SIZE[:SEED]"
+    )]
+    UnknownFormat {
+        /// The file.
+        path: String,
+    },
+    /// The file is not a valid image of its kind (truncated or corrupt).
+    #[error("{path}: not a readable {kind} (truncated or corrupt): {detail}")]
+    Corrupt {
+        /// The file.
+        path: String,
+        /// GeoTIFF or PNG.
+        kind: &'static str,
+        /// The decoder's message.
+        detail: String,
+    },
+    /// The samples are of a kind Relief does not read.
+    #[error("{path}: unsupported sample format: {detail}")]
+    Unsupported {
+        /// The file.
+        path: String,
+        /// What was found.
+        detail: String,
+    },
+    /// Fewer than 2 x 2 samples.
+    #[error("{input}: {width}x{height} samples is too small; at least 2x2 are needed")]
+    TooSmall {
+        /// The input.
+        input: String,
+        /// Columns.
+        width: u32,
+        /// Rows.
+        height: u32,
+    },
+    /// More samples than the configured limit.
+    #[error(
+        "{input}: {width}x{height} = {samples} samples exceeds the limit of {limit}; raise it with --max-samples"
+    )]
+    TooLarge {
+        /// The input.
+        input: String,
+        /// Columns.
+        width: u32,
+        /// Rows.
+        height: u32,
+        /// Their product.
+        samples: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// Every sample is a void.
+    #[error("{0}: every sample is no-data; there is no terrain to build")]
+    AllVoid(String),
+    /// NaN samples that are not declared as no-data.
+    #[error(
+        "{input}: {count} NaN samples (first at column {col}, row {row}) and no GDAL_NODATA tag declaring NaN as no-data"
+    )]
+    NaN {
+        /// The input.
+        input: String,
+        /// How many.
+        count: u64,
+        /// Column of the first.
+        col: u32,
+        /// Row of the first.
+        row: u32,
+    },
+    /// Infinite or absurd heights.
+    #[error(
+        "{input}: {count} samples are not plausible terrain heights (limit +-{ABSURD_HEIGHT_M} m), the first {value} m at column {col}, row {row}; is an undeclared no-data value or a wrong unit in play?"
+    )]
+    Absurd {
+        /// The input.
+        input: String,
+        /// How many samples are absurd.
+        count: u64,
+        /// The first absurd value.
+        value: f32,
+        /// Its column.
+        col: u32,
+        /// Its row.
+        row: u32,
+    },
+    /// No usable ground spacing.
+    #[error("{input}: {detail}")]
+    Spacing {
+        /// The input.
+        input: String,
+        /// What is missing or wrong.
+        detail: String,
+    },
+    /// PNG decoding options that make no heights (non-finite scale or offset).
+    #[error("{input}: {detail}")]
+    BadOptions {
+        /// The input.
+        input: String,
+        /// What is wrong.
+        detail: String,
+    },
+    /// A `synthetic:` spec that does not parse.
+    #[error("bad synthetic spec {spec:?}: {detail}")]
+    BadSpec {
+        /// The spec.
+        spec: String,
+        /// What is wrong.
+        detail: String,
+    },
+}

@@ -1,0 +1,181 @@
+//! The readers on the real DEMs in `../shared/dem` (each checked against its JSON sidecar; the
+//! tests print a notice and pass where the folder is absent, it is present in CI), the fill on
+//! their voids, and the committed crop.
+
+use super::{load_sidecar, shared};
+use crate::dem::{Dem, LoadOptions, PngOptions, embedded_default, load};
+
+fn close(a: f64, b: f64, rel: f64) -> bool {
+    (a - b).abs() <= rel * b.abs()
+}
+
+/// The shared DEM `name`'s PNG decoded with its sidecar, to compare the GeoTIFF against.
+fn png_twin(name: &str, car: &serde_json::Value) -> Option<Dem> {
+    let path = shared(&format!("{name}/{name}.png"))?;
+    let opts = LoadOptions {
+        spacing_x: Some(1.0),
+        spacing_y: Some(1.0),
+        png: PngOptions {
+            scale: car["scale"].as_f64()?,
+            offset: car["offset"].as_f64()?,
+            nodata_value: Some(0),
+        },
+        ..LoadOptions::default()
+    };
+    Some(load(&path, &opts).unwrap())
+}
+
+#[test]
+fn shared_geotiffs_match_their_sidecars() {
+    for (name, file, crs) in [
+        ("fuji_srtm3", "osgearth_mt_fuji_90m.tif", "EPSG:4326"),
+        ("bigtujunga_30m", "ttb_bigtujunga.tif", "EPSG:32611"),
+        ("fortworth_plains_pysheds", "pysheds_dem.tif", "EPSG:4326"),
+    ] {
+        let Some(path) = shared(&format!("{name}/{file}")) else {
+            return;
+        };
+        let car = load_sidecar(name);
+        let d = load(&path, &LoadOptions::default()).unwrap();
+        assert_eq!(d.width as u64, car["width"].as_u64().unwrap(), "{name}");
+        assert_eq!(d.height as u64, car["height"].as_u64().unwrap(), "{name}");
+        let s = &car["spacing_m_xy"];
+        assert!(
+            close(d.spacing_x, s[0].as_f64().unwrap(), 0.01),
+            "{name}: {}",
+            d.spacing_x
+        );
+        assert!(
+            close(d.spacing_y, s[1].as_f64().unwrap(), 0.01),
+            "{name}: {}",
+            d.spacing_y
+        );
+        let (lo, hi) = d.valid_range();
+        assert_eq!(lo as f64, car["min_m"].as_f64().unwrap(), "{name}");
+        assert_eq!(hi as f64, car["max_m"].as_f64().unwrap(), "{name}");
+        assert_eq!(
+            d.voids.count(),
+            car["nodata_pixels"].as_u64().unwrap(),
+            "{name}"
+        );
+        assert_eq!(d.crs.as_deref(), Some(crs), "{name}");
+        // Sample for sample the same as the PNG conversion, voids included.
+        if let Some(p) = png_twin(name, &car) {
+            assert_eq!(p.voids, d.voids, "{name}");
+            let same = (0..d.heights.len())
+                .filter(|&i| !d.is_void(i))
+                .all(|i| d.heights[i] == p.heights[i]);
+            assert!(same, "{name}");
+        }
+    }
+}
+
+#[test]
+fn fuji_voids_are_filled_within_their_surroundings() {
+    let Some(path) = shared("fuji_srtm3/osgearth_mt_fuji_90m.tif") else {
+        return;
+    };
+    let d = load(&path, &LoadOptions::default()).unwrap();
+    assert_eq!(d.voids.count(), 2437);
+    let (w, h) = (d.width as i64, d.height as i64);
+    for i in d.voids.iter() {
+        let (x, y) = (i as i64 % w, i as i64 / w);
+        // Range of the valid samples within 24 samples.
+        let mut r = (f32::MAX, f32::MIN);
+        for yy in (y - 24).max(0)..(y + 25).min(h) {
+            for xx in (x - 24).max(0)..(x + 25).min(w) {
+                let j = (yy * w + xx) as usize;
+                if !d.is_void(j) {
+                    r = (r.0.min(d.heights[j]), r.1.max(d.heights[j]));
+                }
+            }
+        }
+        let v = d.heights[i];
+        assert!(
+            r.0 > r.1 || (v >= r.0 && v <= r.1),
+            "({x}, {y}): {v} outside {r:?}"
+        );
+    }
+}
+
+#[test]
+fn shared_pngs_match_their_sidecars() {
+    for name in [
+        "fuji_srtm3",
+        "bigtujunga_30m",
+        "fortworth_plains_pysheds",
+        "jacksboro_ridges_mpl",
+    ] {
+        let Some(path) = shared(&format!("{name}/{name}.png")) else {
+            return;
+        };
+        let car = load_sidecar(name);
+        let png = PngOptions {
+            scale: car["scale"].as_f64().unwrap(),
+            offset: car["offset"].as_f64().unwrap(),
+            nodata_value: Some(car["nodata_value"].as_u64().unwrap() as u16),
+        };
+        let s = &car["spacing_m_xy"];
+        let (sx, sy) = (s[0].as_f64().unwrap(), s[1].as_f64().unwrap());
+        let d = load(
+            &path,
+            &LoadOptions {
+                spacing_x: Some(sx),
+                spacing_y: Some(sy),
+                png,
+                ..LoadOptions::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(d.width as u64, car["width"].as_u64().unwrap(), "{name}");
+        assert_eq!(d.height as u64, car["height"].as_u64().unwrap(), "{name}");
+        assert_eq!(
+            d.voids.count(),
+            car["nodata_pixels"].as_u64().unwrap(),
+            "{name}"
+        );
+        let (lo, hi) = d.valid_range();
+        assert_eq!(lo as f64, car["min_m"].as_f64().unwrap(), "{name}");
+        assert_eq!(hi as f64, car["max_m"].as_f64().unwrap(), "{name}");
+        assert_eq!((d.spacing_x, d.spacing_y), (sx, sy));
+        assert!(d.crs.is_none());
+    }
+}
+
+#[test]
+fn embedded_default_is_the_committed_crop() {
+    let d = embedded_default().unwrap();
+    assert_eq!((d.width, d.height), (257, 193));
+    assert_eq!(d.voids.count(), 50);
+    assert_eq!(d.valid_range(), (506.0, 3742.0));
+    // 3" at the crop's centre latitude, 35.397 N.
+    assert!((d.spacing_x - 75.69).abs() < 0.05, "{}", d.spacing_x);
+    assert!((d.spacing_y - 92.46).abs() < 0.05, "{}", d.spacing_y);
+    assert_eq!(d.crs.as_deref(), Some("EPSG:4326"));
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/fuji_crop.tif");
+    let f = load(path, &LoadOptions::default()).unwrap();
+    assert_eq!(f.heights, d.heights);
+    assert_eq!(f.voids, d.voids);
+}
+
+#[test]
+fn committed_crop_is_the_documented_window_of_the_original() {
+    let Some(p) = shared("fuji_srtm3/osgearth_mt_fuji_90m.tif") else {
+        return;
+    };
+    let full = load(&p, &LoadOptions::default()).unwrap();
+    let crop = embedded_default().unwrap();
+    // Rows 628..=820, columns 700..=956 (server/data/README.md).
+    for y in 0..crop.height {
+        for x in 0..crop.width {
+            let (i, j) = (
+                (y * crop.width + x) as usize,
+                ((y + 628) * full.width + x + 700) as usize,
+            );
+            assert_eq!(crop.is_void(i), full.is_void(j), "void at ({x}, {y})");
+            if !crop.is_void(i) {
+                assert_eq!(crop.heights[i], full.heights[j], "height at ({x}, {y})");
+            }
+        }
+    }
+}
