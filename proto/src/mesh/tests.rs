@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::cut::Cut;
+use crate::tree::NodeId;
 use crate::tree::TreeShape;
 use proptest::prelude::*;
 
@@ -137,4 +138,133 @@ fn a_missing_triangle_is_a_crack_and_a_flipped_one_a_fold() {
     tris.push(Tri::new(a, c, b).unwrap());
     let r = check_mesh(&shape, |n| shape.grid_pos(n), &tris);
     assert!(r.folds > 0, "{r:?}");
+}
+
+fn leaf(shape: &TreeShape, c: u32, r: u32) -> NodeId {
+    shape.leaf(c, r)
+}
+
+#[test]
+fn two_by_two_split_is_the_cell_itself() {
+    let shape = TreeShape::new(2, 2).unwrap();
+    let mut cut = Cut::root(&shape);
+    assert!(oracle(&shape, &cut).is_empty());
+    cut.split(&shape, NodeId::ROOT).unwrap();
+    let (a, b, d, e) = (
+        leaf(&shape, 0, 0),
+        leaf(&shape, 1, 0),
+        leaf(&shape, 0, 1),
+        leaf(&shape, 1, 1),
+    );
+    let mut expect = vec![Tri::new(a, d, e).unwrap(), Tri::new(a, e, b).unwrap()];
+    expect.sort_unstable();
+    assert_eq!(oracle(&shape, &cut), expect);
+    assert_eq!(FanMesh::new(&shape, &cut).triangles(), expect);
+    valid(&shape, &expect);
+}
+
+#[test]
+fn three_by_three_root_split_meets_at_one_junction() {
+    // Children of the root: NW 2x2, NE 1x2 strip, SW 2x1 strip, SE single sample; they meet
+    // only at the centre of cell (1, 1), which therefore holds the whole mesh.
+    let shape = TreeShape::new(3, 3).unwrap();
+    let mut cut = Cut::root(&shape);
+    let mut mesh = FanMesh::new(&shape, &cut);
+    cut.split(&shape, NodeId::ROOT).unwrap();
+    mesh.update_around(&shape, &cut, NodeId::ROOT);
+    let [nw, ne, sw, se] = [0, 1, 2, 3].map(|k| NodeId::ROOT.child(k));
+    let mut expect = vec![Tri::new(nw, sw, se).unwrap(), Tri::new(nw, se, ne).unwrap()];
+    expect.sort_unstable();
+    assert_eq!(oracle(&shape, &cut), expect);
+    assert_eq!(mesh.triangles(), expect);
+    assert_eq!(mesh.take_dirty(), vec![(1, 1)]);
+    valid(&shape, &expect);
+}
+
+#[test]
+fn levels_three_apart_stay_closed() {
+    // 16 x 16: refine towards the grid's centre inside the NW quadrant only, so leaves (level 4)
+    // touch the three other level-1 quadrants.
+    let shape = TreeShape::new(16, 16).unwrap();
+    let mut cut = Cut::root(&shape);
+    let mut mesh = FanMesh::new(&shape, &cut);
+    let mut n = NodeId::ROOT;
+    for k in [0, 3, 3, 3] {
+        cut.split(&shape, n).unwrap();
+        mesh.update_around(&shape, &cut, n);
+        n = n.child(k);
+    }
+    let truth = oracle(&shape, &cut);
+    assert_eq!(mesh.triangles(), truth);
+    assert_eq!(mesh.triangle_count(), truth.len());
+    assert_eq!(FanMesh::new(&shape, &cut).triangles(), truth);
+    valid(&shape, &truth);
+    // The corner cell where the finest leaf meets three level-1 quadrants.
+    let (l, e, s, se) = (
+        leaf(&shape, 7, 7),
+        NodeId::ROOT.child(1),
+        NodeId::ROOT.child(2),
+        NodeId::ROOT.child(3),
+    );
+    assert_eq!(mesh.cell((7, 7)), [Tri::new(l, s, se), Tri::new(l, se, e)]);
+    // Merging back up restores the single-split mesh.
+    for p in [
+        NodeId {
+            level: 3,
+            x: 3,
+            y: 3,
+        },
+        NodeId {
+            level: 2,
+            x: 1,
+            y: 1,
+        },
+        NodeId {
+            level: 1,
+            x: 0,
+            y: 0,
+        },
+    ] {
+        cut.merge(&shape, p).unwrap();
+        mesh.update_around(&shape, &cut, p);
+        assert_eq!(mesh.triangles(), oracle(&shape, &cut));
+    }
+    assert_eq!(mesh.triangle_count(), 2);
+}
+
+#[test]
+fn clipped_block_centres_would_fold_a_border_strip() {
+    // The smallest grid (by sample count, searched exhaustively over all cuts of every grid up to
+    // 45 samples and every grid up to 8 x 8) on which clipped-block centres fold; nominal
+    // centres, which the tree uses, do not.
+    let shape = TreeShape::new(5, 9).unwrap();
+    let mut cut = Cut::root(&shape);
+    for n in [
+        NodeId::ROOT,
+        NodeId {
+            level: 1,
+            x: 0,
+            y: 0,
+        },
+        NodeId {
+            level: 2,
+            x: 0,
+            y: 1,
+        },
+        NodeId {
+            level: 3,
+            x: 1,
+            y: 3,
+        },
+    ] {
+        cut.split(&shape, n).unwrap();
+    }
+    let tris = oracle(&shape, &cut);
+    valid(&shape, &tris);
+    let clipped = |n: NodeId| {
+        let (c0, r0, c1, r1) = shape.block(n);
+        ((c0 + c1) as f32 / 2.0, (r0 + r1) as f32 / 2.0)
+    };
+    let r = check_mesh(&shape, clipped, &tris);
+    assert_eq!(r.folds, 1, "{r:?}");
 }
