@@ -55,8 +55,11 @@ pub fn build_arrays(
         zmax: vec![0; inner],
     };
     let leaf0 = inner;
+    // Round half away from zero, without a libm call per sample.
+    let inv = 1.0 / quantum;
     for (dst, &h) in t.z[leaf0..].iter_mut().zip(heights) {
-        *dst = (h / quantum).round() as i32;
+        let v = h * inv;
+        *dst = (v + 0.5f32.copysign(v)) as i32;
     }
     let total = n as f64;
     let mut done = (n - inner) as f64;
