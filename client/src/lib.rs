@@ -1,5 +1,15 @@
-//! `relief-client`: the Relief client.
+//! `relief-client`: the Relief client library and command line.
 //!
-//! Today the client's cut mirror and fan builder live in `relief-proto` (`mirror`, `fan`), where
-//! the server's benchmarks replay deltas with them too. The network session, the wgpu renderer
-//! and the load generator arrive with the streaming-server, client and load-testing issues.
+//! - [`session`]: a streaming session: hello, poses, deltas applied to a mirror of the cut and
+//!   its fan mesh, digests checked, acknowledgements, and reconnect-and-resume on its own.
+//! - [`http`]: a small HTTP/1.1 client for the server's HTTP endpoints.
+//! - [`fly`]: one session flown along a camera path, with bandwidth and latency figures.
+//!
+//! The cut mirror and the fan builder themselves live in `relief-proto` (`mirror`, `mesh`),
+//! where the server's benchmarks replay deltas with them too. The wgpu renderer and the load
+//! generator arrive with their own issues.
+pub mod fly;
+pub mod http;
+pub mod session;
+
+pub use session::{Session, SessionConfig};

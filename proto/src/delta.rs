@@ -44,7 +44,9 @@ pub struct Delta {
     pub seq: u64,
     /// [`crate::cut::Cut::digest`] of the cut after this delta.
     pub digest: u64,
-    /// Interior nodes that merge (all their children are active before the delta).
+    /// Interior nodes that merge, in canonical order (ascending level). They are applied in
+    /// reverse, deepest first: a node and its child may both merge (a delta between distant
+    /// cuts), and each node's children are active by the time it merges.
     pub merges: Vec<NodeId>,
     /// Active nodes that split, parents before children.
     pub splits: Vec<Split>,

@@ -11,11 +11,13 @@
 //! - [`delta`]: merges and splits between two cuts, and their compact bit-packed body.
 //! - [`bits`]: the bit writer and reader with Exp-Golomb codes behind that body.
 //! - [`mirror`]: the client-side cut with heights, rebuilt from deltas and checked by digest.
-//! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit.
+//! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit;
+//!   [`close`]: the reasons a session ends; [`snapshot`]: a cut in one bit per inner node.
 //! - [`path`]: the standard and stress camera paths.
 //! - [`mesh`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
 //!   output-sensitive incremental builder the client uses.
 pub mod bits;
+pub mod close;
 pub mod codec;
 pub mod cut;
 pub mod delta;
@@ -24,6 +26,7 @@ pub mod mesh;
 pub mod mirror;
 pub mod msg;
 pub mod path;
+pub mod snapshot;
 pub mod terrain;
 pub mod tree;
 pub mod view;

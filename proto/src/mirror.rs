@@ -74,9 +74,11 @@ impl Mirror {
         self.nodes.get(&geom.shape.index(node)).copied()
     }
 
-    /// Applies `delta` (merges, then splits in order) and checks its digest. `on_change` is called
-    /// after each merge or split with the node, for incremental mesh updates. On error the mirror
-    /// may hold part of the delta: the caller must resynchronise.
+    /// Applies `delta` and checks its digest: first the merges deepest first (in reverse of their
+    /// canonical order, so that when a node and its child both merge the child goes first and
+    /// every merging node's children are active), then the splits in order (parents first).
+    /// `on_change` is called after each merge or split with the node, for incremental mesh
+    /// updates. On error the mirror may hold part of the delta: the caller must resynchronise.
     pub fn apply(
         &mut self,
         geom: &TerrainGeometry,
@@ -84,7 +86,7 @@ impl Mirror {
         mut on_change: impl FnMut(&Cut, NodeId),
     ) -> Result<(), MirrorError> {
         let shape = &geom.shape;
-        for &m in &delta.merges {
+        for &m in delta.merges.iter().rev() {
             self.cut.merge(shape, m)?;
             for (_, c) in shape.children(m) {
                 self.nodes.remove(&shape.index(c));

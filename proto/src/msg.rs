@@ -1,17 +1,181 @@
-//! Wire messages. Each is one binary WebSocket frame, encoded by [`crate::codec`].
+//! Wire messages (DESIGN.md section 6). Each is one binary WebSocket frame, encoded by
+//! [`crate::codec`]; `docs/protocol.md` specifies every field, unit and close reason.
 //!
-//! The session messages (hello, welcome, poses, acknowledgements) arrive with the streaming
-//! server; this module holds what the LOD engine produces today.
+//! A session: the client sends [`ClientMsg::Hello`]; the server answers [`ServerMsg::Welcome`]
+//! (or closes with a [`CloseReason`]). The client then sends [`ClientMsg::Pose`]s whenever its
+//! camera moves; the server coalesces them (the latest wins) and answers with
+//! [`ServerMsg::Delta`]s, which the client acknowledges with [`ClientMsg::Ack`]. At most
+//! [`Welcome::max_in_flight`] deltas are unacknowledged at any time.
 
 use crate::codec::{Decode, Encode};
 use crate::delta::{BodyError, Delta};
-use crate::tree::TreeShape;
+use crate::snapshot::Snapshot;
+use crate::terrain::TerrainGeometry;
+use crate::tree::{ShapeError, TreeShape};
+use crate::view::{Camera, Lens};
+
+/// The protocol version this crate speaks. A hello with another version is refused with
+/// [`CloseReason::Version`].
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// Which stream a session receives. One kind today; the field exists so that a later engine
+/// can be offered without a new protocol version.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Encode, Decode)]
+pub enum StreamKind {
+    /// The vertex stream of paper 000: Haar splits and merges of the vertex quadtree.
+    Vertex,
+}
+
+/// A camera pose on the wire.
+#[derive(Clone, Copy, Debug, PartialEq, Encode, Decode)]
+pub struct WireCamera {
+    /// Eye position in world metres: x east, y north, z up ([`crate::tree::WorldFrame`]).
+    pub eye: [f32; 3],
+    /// Heading in radians, counter-clockwise from east.
+    pub yaw: f32,
+    /// Elevation of the view direction in radians, in (-pi/2, pi/2); negative looks down.
+    pub pitch: f32,
+}
+
+impl From<Camera> for WireCamera {
+    fn from(c: Camera) -> Self {
+        WireCamera {
+            eye: c.eye.to_array(),
+            yaw: c.yaw,
+            pitch: c.pitch,
+        }
+    }
+}
+
+impl From<WireCamera> for Camera {
+    fn from(c: WireCamera) -> Self {
+        Camera {
+            eye: c.eye.into(),
+            yaw: c.yaw,
+            pitch: c.pitch,
+        }
+    }
+}
+
+/// Viewport and lens on the wire.
+#[derive(Clone, Copy, Debug, PartialEq, Encode, Decode)]
+pub struct WireLens {
+    /// Viewport width in pixels.
+    pub width: u32,
+    /// Viewport height in pixels.
+    pub height: u32,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f32,
+    /// Near plane distance in metres.
+    pub near: f32,
+}
+
+impl From<Lens> for WireLens {
+    fn from(l: Lens) -> Self {
+        WireLens {
+            width: l.width,
+            height: l.height,
+            fov_y_deg: l.fov_y_deg,
+            near: l.near,
+        }
+    }
+}
+
+impl From<WireLens> for Lens {
+    fn from(l: WireLens) -> Self {
+        Lens {
+            width: l.width,
+            height: l.height,
+            fov_y_deg: l.fov_y_deg,
+            near: l.near,
+        }
+    }
+}
+
+/// The opening message of a session.
+#[derive(Clone, Debug, PartialEq, Encode, Decode)]
+pub struct Hello {
+    /// Must equal the server's [`PROTOCOL_VERSION`].
+    pub version: u32,
+    /// The stream wanted.
+    pub kind: StreamKind,
+    /// The client's viewport: screen errors are measured in its pixels.
+    pub lens: WireLens,
+    /// Screen-space error threshold in pixels.
+    pub tau: f32,
+    /// Bandwidth budget in bytes per second of delta bodies; `None` for unlimited.
+    pub budget: Option<u32>,
+    /// The cut to resume from, with the terrain it belongs to; `None` starts from the root.
+    pub resume: Option<Resume>,
+}
+
+/// What a client sends to continue a session on any server holding the same terrain.
+#[derive(Clone, Debug, PartialEq, Eq, Encode, Decode)]
+pub struct Resume {
+    /// [`TerrainInfo::id`] of the terrain the cut belongs to.
+    pub terrain_id: u64,
+    /// The client's cut.
+    pub snapshot: Snapshot,
+}
+
+/// What a client needs to know of the terrain.
+#[derive(Clone, Debug, PartialEq, Encode, Decode)]
+pub struct TerrainInfo {
+    /// Identifier of the store's contents; resume snapshots name it.
+    pub id: u64,
+    /// Grid width in samples.
+    pub width: u32,
+    /// Grid height in samples.
+    pub height: u32,
+    /// Ground metres between columns.
+    pub spacing_x: f32,
+    /// Ground metres between rows.
+    pub spacing_y: f32,
+    /// Metres per height quantum.
+    pub z_quantum: f32,
+    /// The root node's height in quanta: with the deltas' details, every height follows.
+    pub root_z: i32,
+    /// Lowest and highest height in metres, for camera placement and colour ramps.
+    pub height_range: [f32; 2],
+}
+
+impl TerrainInfo {
+    /// The geometry both ends compute node positions and boxes from.
+    pub fn geometry(&self) -> Result<TerrainGeometry, ShapeError> {
+        TerrainGeometry::new(
+            self.width,
+            self.height,
+            self.spacing_x,
+            self.spacing_y,
+            self.z_quantum,
+        )
+    }
+}
+
+/// The server's answer to a hello.
+#[derive(Clone, Debug, PartialEq, Encode, Decode)]
+pub struct Welcome {
+    /// The server's [`PROTOCOL_VERSION`].
+    pub version: u32,
+    /// Identifies the session in the server's logs and metrics.
+    pub session_id: u64,
+    /// The terrain.
+    pub terrain: TerrainInfo,
+    /// Whether the session continues from the hello's resume snapshot (else from the root).
+    pub resumed: bool,
+    /// Digest of the session's cut now: the root's, or the resumed cut's.
+    pub digest: u64,
+    /// How many deltas may be unacknowledged at once.
+    pub max_in_flight: u32,
+    /// The largest message the server accepts, in bytes.
+    pub max_message_bytes: u32,
+}
 
 /// A delta as it travels: the header in the clear, merges and splits in the compact body
 /// ([`crate::delta`]).
 #[derive(Clone, Debug, PartialEq, Eq, Encode, Decode)]
 pub struct WireDelta {
-    /// Sequence number within the session.
+    /// Sequence number within the connection, from 1.
     pub seq: u64,
     /// Digest of the cut after the delta.
     pub digest: u64,
@@ -35,48 +199,132 @@ impl WireDelta {
     }
 }
 
-/// Messages from server to client.
+/// A delta in a session, with what it answers.
 #[derive(Clone, Debug, PartialEq, Eq, Encode, Decode)]
-pub enum ServerMsg {
-    /// An incremental update of the client's cut.
-    Delta(WireDelta),
+pub struct SessionDelta {
+    /// Sequence number of the newest pose the delta reflects.
+    pub pose_seq: u64,
+    /// Whether the cut now meets tau for that pose; false while a bandwidth budget holds splits
+    /// back (more deltas follow without a new pose).
+    pub complete: bool,
+    /// The delta.
+    pub delta: WireDelta,
 }
 
+/// The body of `POST /v1/lod`: one stateless LOD step.
+#[derive(Clone, Debug, PartialEq, Encode, Decode)]
+pub struct LodRequest {
+    /// Must equal the server's [`PROTOCOL_VERSION`].
+    pub version: u32,
+    /// The client's viewport.
+    pub lens: WireLens,
+    /// Screen-space error threshold in pixels.
+    pub tau: f32,
+    /// The camera.
+    pub camera: WireCamera,
+    /// The client's current cut; `None` for the root alone.
+    pub base: Option<Resume>,
+}
+
+/// The answer to `POST /v1/lod`.
+#[derive(Clone, Debug, PartialEq, Eq, Encode, Decode)]
+pub struct LodResponse {
+    /// The delta from the base cut to the cut for the camera (sequence number 1).
+    pub delta: WireDelta,
+    /// The new cut, to send as the base of the next request.
+    pub snapshot: Snapshot,
+}
+
+/// Messages from client to server.
+#[derive(Clone, Debug, PartialEq, Encode, Decode)]
+pub enum ClientMsg {
+    /// Opens the session; first message, once.
+    Hello(Hello),
+    /// The camera moved.
+    Pose {
+        /// Increases with every pose of the connection; a pose not newer than the last one
+        /// received is ignored.
+        seq: u64,
+        /// The pose.
+        camera: WireCamera,
+    },
+    /// Every delta up to and including `seq` has been applied.
+    Ack {
+        /// Sequence number of the newest applied delta.
+        seq: u64,
+    },
+}
+
+/// Messages from server to client.
+#[derive(Clone, Debug, PartialEq, Encode, Decode)]
+pub enum ServerMsg {
+    /// The answer to a hello.
+    Welcome(Welcome),
+    /// An incremental update of the client's cut.
+    Delta(SessionDelta),
+    /// The server is going away; reconnect and resume after the given delay.
+    Reconnect {
+        /// Milliseconds to wait before reconnecting.
+        after_ms: u32,
+    },
+}
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::codec::{CodecError, decode, encode};
     use proptest::prelude::*;
 
+    fn delta_msg(seq: u64, digest: u64, body: Vec<u8>) -> ServerMsg {
+        ServerMsg::Delta(SessionDelta {
+            pose_seq: seq / 2,
+            complete: seq % 2 == 0,
+            delta: WireDelta { seq, digest, body },
+        })
+    }
+
     proptest! {
         #[test]
         fn messages_round_trip(seq in any::<u64>(), digest in any::<u64>(),
-                               body in proptest::collection::vec(any::<u8>(), 0..300)) {
-            let m = ServerMsg::Delta(WireDelta { seq, digest, body });
-            let bytes = encode(&m);
-            prop_assert_eq!(decode::<ServerMsg>(&bytes, 1 << 20).unwrap(), m);
+                               body in proptest::collection::vec(any::<u8>(), 0..300),
+                               x in -1e6f32..1e6, budget in proptest::option::of(any::<u32>())) {
+            let m = delta_msg(seq, digest, body.clone());
+            prop_assert_eq!(decode::<ServerMsg>(&encode(&m), 1 << 20).unwrap(), m);
+            let hello = ClientMsg::Hello(Hello {
+                version: PROTOCOL_VERSION,
+                kind: StreamKind::Vertex,
+                lens: Lens::STANDARD.into(),
+                tau: x,
+                budget,
+                resume: Some(Resume {
+                    terrain_id: digest,
+                    snapshot: Snapshot { digest: seq, bits: body },
+                }),
+            });
+            prop_assert_eq!(decode::<ClientMsg>(&encode(&hello), 1 << 20).unwrap(), hello);
+            let pose = ClientMsg::Pose {
+                seq,
+                camera: WireCamera { eye: [x, -x, 3.0], yaw: 0.5, pitch: -0.2 },
+            };
+            prop_assert_eq!(decode::<ClientMsg>(&encode(&pose), 1 << 20).unwrap(), pose);
         }
 
         #[test]
         fn random_frames_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
             let _ = decode::<ServerMsg>(&bytes, 1 << 20);
+            let _ = decode::<ClientMsg>(&bytes, 1 << 20);
+            let _ = decode::<LodRequest>(&bytes, 1 << 20);
         }
     }
 
     #[test]
     fn oversized_and_lying_frames_are_refused() {
-        let m = ServerMsg::Delta(WireDelta {
-            seq: 1,
-            digest: 2,
-            body: vec![7; 100],
-        });
-        let bytes = encode(&m);
+        let bytes = encode(&delta_msg(1, 2, vec![7; 100]));
         assert!(matches!(
             decode::<ServerMsg>(&bytes, 50),
             Err(CodecError::TooLarge(..))
         ));
         // A length prefix claiming far more bytes than follow.
-        let lie = [0u8, 1, 2, 0xFC, 0xFF, 0xFF, 0xFF, 0x7F];
+        let lie = [1u8, 0, 1, 1, 2, 0xFC, 0xFF, 0xFF, 0xFF, 0x7F];
         assert!(matches!(
             decode::<ServerMsg>(&lie, 1 << 20),
             Err(CodecError::Malformed(_))
@@ -87,5 +335,16 @@ mod tests {
             decode::<ServerMsg>(&trailing, 1 << 20),
             Err(CodecError::Trailing(1))
         ));
+    }
+
+    #[test]
+    fn cameras_and_lenses_convert_both_ways() {
+        let c = Camera {
+            eye: glam::Vec3::new(1.0, 2.0, 3.0),
+            yaw: 0.25,
+            pitch: -0.5,
+        };
+        assert_eq!(Camera::from(WireCamera::from(c)), c);
+        assert_eq!(Lens::from(WireLens::from(Lens::STANDARD)), Lens::STANDARD);
     }
 }

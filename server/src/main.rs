@@ -23,6 +23,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// Serve a terrain: WebSocket sessions on /v1/stream, HTTP on /v1/terrain, /v1/lod,
+    /// /v1/heights, /v1/sessions, /metrics, /healthz and /readyz. With no options it serves the
+    /// embedded terrain on 127.0.0.1:8080. Stops on SIGTERM or Ctrl-C after draining.
+    Serve(Box<relief_server::serve::ServeArgs>),
     /// Preprocess a DEM into a store (the vertex quadtree, memory-mapped by the server).
     Build {
         /// The DEM: a GeoTIFF (int16, uint16, float32), a 16-bit grayscale PNG, or
@@ -137,6 +141,14 @@ fn run() -> anyhow::Result<()> {
         .with_writer(std::io::stderr)
         .init();
     match Cli::parse().command {
+        Command::Serve(args) => {
+            let config = args.resolve().context("bad configuration")?;
+            tracing::info!(?config, "starting");
+            tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()?
+                .block_on(relief_server::serve::run(config))?;
+        }
         Command::Build {
             input,
             output,

@@ -8,7 +8,7 @@
 use proptest::prelude::*;
 use relief_proto::codec::{HARD_LIMIT, decode};
 use relief_proto::delta::Delta;
-use relief_proto::msg::ServerMsg;
+use relief_proto::msg::{ClientMsg, ServerMsg};
 use relief_proto::tree::TreeShape;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -48,7 +48,10 @@ proptest! {
     #[test]
     fn random_frames_stay_within_the_limit(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
         let limit = 4096;
-        let peak = largest_during(|| { let _ = decode::<ServerMsg>(&bytes, limit); });
+        let peak = largest_during(|| {
+            let _ = decode::<ServerMsg>(&bytes, limit);
+            let _ = decode::<ClientMsg>(&bytes, limit);
+        });
         prop_assert!(peak <= limit, "allocated {} bytes for a {}-byte frame", peak, bytes.len());
     }
 
@@ -63,8 +66,9 @@ proptest! {
 
 #[test]
 fn a_length_prefix_claiming_gigabytes_allocates_nothing_large() {
-    // ServerMsg::Delta { seq: 1, digest: 2, body: <len = 2^40> }, then 3 bytes.
-    let mut frame = vec![0u8, 1, 2, 0xFD];
+    // ServerMsg::Delta { pose_seq: 0, complete: true, delta: { seq: 1, digest: 2,
+    // body: <len = 2^40> } }, then 3 bytes.
+    let mut frame = vec![1u8, 0, 1, 1, 2, 0xFD];
     frame.extend_from_slice(&(1u64 << 40).to_le_bytes());
     frame.extend_from_slice(&[1, 2, 3]);
     let peak = largest_during(|| {

@@ -19,7 +19,7 @@ use relief_proto::codec;
 use relief_proto::haar::error_value;
 use relief_proto::mesh::{self, FanMesh};
 use relief_proto::mirror::Mirror;
-use relief_proto::msg::{ServerMsg, WireDelta};
+use relief_proto::msg::{ServerMsg, SessionDelta, WireDelta};
 use relief_proto::path::{PATH_HZ, PathKind, camera_path};
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
@@ -366,16 +366,18 @@ struct Accum {
 }
 
 fn wire(delta: &relief_proto::delta::Delta, geom: &TerrainGeometry) -> Vec<u8> {
-    codec::encode(&ServerMsg::Delta(WireDelta::pack(
-        delta,
-        &geom.shape,
-        geom.z_quantum,
-    )))
+    codec::encode(&ServerMsg::Delta(SessionDelta {
+        pose_seq: delta.seq,
+        complete: true,
+        delta: WireDelta::pack(delta, &geom.shape, geom.z_quantum),
+    }))
 }
 
 fn unwire(bytes: &[u8], geom: &TerrainGeometry) -> anyhow::Result<relief_proto::delta::Delta> {
-    let ServerMsg::Delta(wd) = codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT)?;
-    Ok(wd.unpack(&geom.shape, geom.z_quantum)?)
+    match codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT)? {
+        ServerMsg::Delta(d) => Ok(d.delta.unpack(&geom.shape, geom.z_quantum)?),
+        other => anyhow::bail!("expected a delta, got {other:?}"),
+    }
 }
 
 /// The mirror's triangles in world space as a client draws them: every active node whose parent

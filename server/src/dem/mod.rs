@@ -355,9 +355,12 @@ fn spacing(
 /// The crop of Mt Fuji shipped with the server (see `server/data/README.md`).
 pub const EMBEDDED_FUJI: &[u8] = include_bytes!("../../data/fuji_crop.tif");
 
+/// The name the embedded default terrain goes by (its source in store metadata and logs).
+pub const EMBEDDED_SPEC: &str = "embedded:fuji_crop.tif";
+
 /// The embedded default terrain: the 257 x 193 Mt Fuji crop, decoded and void-filled.
 pub fn embedded_default() -> Result<Dem, DemError> {
-    let name = "embedded:fuji_crop.tif";
+    let name = EMBEDDED_SPEC;
     let opts = LoadOptions::default();
     let raw = geotiff::read(name, std::io::Cursor::new(EMBEDDED_FUJI), &opts)?;
     finish(name, raw, &opts)

@@ -230,6 +230,14 @@ impl Store {
         &self.map[off as usize..(off + len) as usize]
     }
 
+    /// An identifier of the store's contents: the body checksum over the header's own. Two
+    /// servers holding the same store give the same id, so a resume snapshot taken on one is
+    /// accepted by the other and refused by a server holding another terrain.
+    pub fn terrain_id(&self) -> u64 {
+        let head = crc32fast::hash(&self.map[..HEADER_LEN - 4]);
+        (u64::from(head) << 32) | u64::from(self.header.body_crc)
+    }
+
     /// Tree shape, world frame and z quantum.
     pub fn geometry(&self) -> &TerrainGeometry {
         &self.geom

@@ -1,0 +1,443 @@
+//! A streaming session with a Relief server (protocol: `docs/protocol.md`).
+//!
+//! [`Session`] connects, says hello, sends poses, and applies each delta to a [`Mirror`] of the
+//! cut and to the [`FanMesh`] built from it. It checks every delta's digest and acknowledges it.
+//! When the connection drops, or the server asks it to reconnect (a drain), it reconnects with
+//! exponential backoff and resumes from a snapshot of its own cut, then sends its latest pose
+//! again: the caller sees one continuous stream. A digest mismatch is counted as a desync and
+//! repaired by starting again from the root.
+
+use futures_util::{SinkExt, StreamExt};
+use relief_proto::close::CloseReason;
+use relief_proto::codec;
+use relief_proto::mesh::FanMesh;
+use relief_proto::mirror::Mirror;
+use relief_proto::msg::{
+    ClientMsg, Hello, PROTOCOL_VERSION, Resume, ServerMsg, StreamKind, TerrainInfo, WireCamera,
+};
+use relief_proto::snapshot::Snapshot;
+use relief_proto::terrain::TerrainGeometry;
+use relief_proto::view::{Camera, Lens};
+use std::time::{Duration, Instant};
+use tokio::net::TcpStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
+
+type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
+
+/// How a session connects and what it asks for.
+#[derive(Clone, Debug)]
+pub struct SessionConfig {
+    /// The stream's URL, e.g. `ws://127.0.0.1:8080/v1/stream`.
+    pub url: String,
+    /// The viewport.
+    pub lens: Lens,
+    /// Screen-space error threshold, pixels.
+    pub tau: f32,
+    /// Bandwidth budget, bytes per second; `None` for unlimited.
+    pub budget: Option<u32>,
+    /// First wait before reconnecting; doubles on each failed attempt.
+    pub backoff_initial: Duration,
+    /// Longest wait between attempts.
+    pub backoff_max: Duration,
+    /// Give up after this long without a connection.
+    pub reconnect_deadline: Duration,
+}
+
+impl SessionConfig {
+    /// Defaults for `url`: the standard lens, tau 1, no budget, backoff 50 ms to 2 s, 30 s deadline.
+    pub fn new(url: &str) -> SessionConfig {
+        SessionConfig {
+            url: url.to_string(),
+            lens: Lens::STANDARD,
+            tau: 1.0,
+            budget: None,
+            backoff_initial: Duration::from_millis(50),
+            backoff_max: Duration::from_secs(2),
+            reconnect_deadline: Duration::from_secs(30),
+        }
+    }
+}
+
+/// A session that cannot go on.
+#[derive(Debug, thiserror::Error)]
+pub enum ClientError {
+    /// No connection could be made within the reconnect deadline.
+    #[error("cannot connect to {url}: {last}")]
+    Connect {
+        /// The URL.
+        url: String,
+        /// The last attempt's error.
+        last: String,
+    },
+    /// The server closed the session for a reason that reconnecting cannot fix.
+    #[error("the server closed the session ({code}): {text}")]
+    Closed {
+        /// The close code.
+        code: u16,
+        /// The close reason's text.
+        text: String,
+    },
+    /// The server broke the protocol.
+    #[error("protocol error: {0}")]
+    Protocol(String),
+}
+
+/// What one applied delta did.
+#[derive(Clone, Copy, Debug)]
+pub struct Applied {
+    /// The delta's sequence number on its connection.
+    pub seq: u64,
+    /// The newest pose the delta reflects.
+    pub pose_seq: u64,
+    /// Whether the cut meets tau for that pose (false while a budget holds splits back).
+    pub complete: bool,
+    /// Bytes of the message.
+    pub bytes: usize,
+    /// Merges and splits applied.
+    pub changes: usize,
+}
+
+/// Counters over the session's life.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Counters {
+    /// Deltas applied.
+    pub deltas: u64,
+    /// Bytes of messages received.
+    pub bytes_in: u64,
+    /// Deltas whose digest did not match the mirror.
+    pub desyncs: u64,
+    /// Connections made after the first.
+    pub reconnects: u64,
+    /// Reconnections the server resumed from the snapshot.
+    pub resumes: u64,
+}
+
+/// A live session: the connection, the mirror and its mesh.
+pub struct Session {
+    /// Where and how to connect.
+    config: SessionConfig,
+    /// The connection; `None` between a drop and the reconnect.
+    ws: Option<Ws>,
+    /// The terrain, from the first welcome.
+    info: TerrainInfo,
+    /// Its geometry.
+    geom: TerrainGeometry,
+    /// The mirrored cut with heights.
+    mirror: Mirror,
+    /// Triangles of the mirrored cut.
+    mesh: FanMesh,
+    /// The last pose sent and its sequence number, sent again after a reconnect.
+    last_pose: Option<(u64, Camera)>,
+    /// The next pose sequence number; grows across reconnects.
+    next_pose_seq: u64,
+    /// The server's window of unacknowledged deltas.
+    max_in_flight: u32,
+    /// Counters.
+    counters: Counters,
+}
+
+fn decode(bytes: &[u8]) -> Result<ServerMsg, ClientError> {
+    codec::decode(bytes, codec::HARD_LIMIT).map_err(|e| ClientError::Protocol(e.to_string()))
+}
+
+async fn dial(url: &str) -> Result<Ws, String> {
+    let cfg = WebSocketConfig::default()
+        .max_message_size(Some(codec::HARD_LIMIT))
+        .max_frame_size(Some(codec::HARD_LIMIT));
+    tokio_tungstenite::connect_async_with_config(url, Some(cfg), true)
+        .await
+        .map(|(ws, _)| ws)
+        .map_err(|e| e.to_string())
+}
+
+/// One step of the handshake's outcome.
+enum Opened {
+    /// Welcomed on this connection.
+    Welcome(Ws, relief_proto::msg::Welcome),
+    /// Closed for a reason worth retrying.
+    Retry(String),
+}
+
+async fn handshake(config: &SessionConfig, resume: Option<Resume>) -> Result<Opened, ClientError> {
+    let mut ws = match dial(&config.url).await {
+        Ok(ws) => ws,
+        Err(e) => return Ok(Opened::Retry(e)),
+    };
+    let hello = ClientMsg::Hello(Hello {
+        version: PROTOCOL_VERSION,
+        kind: StreamKind::Vertex,
+        lens: config.lens.into(),
+        tau: config.tau,
+        budget: config.budget,
+        resume,
+    });
+    if let Err(e) = ws.send(Message::Binary(codec::encode(&hello).into())).await {
+        return Ok(Opened::Retry(e.to_string()));
+    }
+    loop {
+        match ws.next().await {
+            Some(Ok(Message::Binary(b))) => match decode(&b)? {
+                ServerMsg::Welcome(w) => return Ok(Opened::Welcome(ws, w)),
+                other => {
+                    return Err(ClientError::Protocol(format!(
+                        "expected a welcome, got {other:?}"
+                    )));
+                }
+            },
+            Some(Ok(Message::Close(frame))) => {
+                let (code, text) = frame
+                    .map(|f| (u16::from(f.code), f.reason.to_string()))
+                    .unwrap_or((1005, String::new()));
+                return closed(code, text).map(Opened::Retry);
+            }
+            Some(Ok(_)) => continue,
+            Some(Err(e)) => return Ok(Opened::Retry(e.to_string())),
+            None => return Ok(Opened::Retry("connection closed".into())),
+        }
+    }
+}
+
+/// A close worth retrying gives its text; any other is the session's end.
+fn closed(code: u16, text: String) -> Result<String, ClientError> {
+    match CloseReason::from_code(code) {
+        Some(r) if !r.retry() => Err(ClientError::Closed { code, text }),
+        _ => Ok(format!("closed ({code}): {text}")),
+    }
+}
+
+impl Session {
+    /// Connects and opens a session from the root (retrying within the reconnect deadline).
+    pub async fn connect(config: SessionConfig) -> Result<Session, ClientError> {
+        let (ws, welcome) = Self::establish(&config, None).await?;
+        let info = welcome.terrain.clone();
+        let geom = info
+            .geometry()
+            .map_err(|e| ClientError::Protocol(format!("bad terrain in welcome: {e}")))?;
+        let mirror = Mirror::new(&geom, info.root_z);
+        let mesh = FanMesh::new(&geom.shape, mirror.cut());
+        Ok(Session {
+            config,
+            ws: Some(ws),
+            info,
+            geom,
+            mirror,
+            mesh,
+            last_pose: None,
+            next_pose_seq: 1,
+            max_in_flight: welcome.max_in_flight,
+            counters: Counters::default(),
+        })
+    }
+
+    async fn establish(
+        config: &SessionConfig,
+        resume: Option<Resume>,
+    ) -> Result<(Ws, relief_proto::msg::Welcome), ClientError> {
+        let started = Instant::now();
+        let mut wait = config.backoff_initial;
+        loop {
+            let last = match handshake(config, resume.clone()).await? {
+                Opened::Welcome(ws, w) => {
+                    if w.version != PROTOCOL_VERSION {
+                        return Err(ClientError::Protocol(format!(
+                            "server speaks protocol {}, this client {PROTOCOL_VERSION}",
+                            w.version
+                        )));
+                    }
+                    return Ok((ws, w));
+                }
+                Opened::Retry(e) => e,
+            };
+            if started.elapsed() + wait > config.reconnect_deadline {
+                return Err(ClientError::Connect {
+                    url: config.url.clone(),
+                    last,
+                });
+            }
+            tracing::debug!("connect failed ({last}); retrying in {wait:?}");
+            tokio::time::sleep(wait).await;
+            wait = (wait * 2).min(config.backoff_max);
+        }
+    }
+
+    /// Reconnects, resuming from the mirror's cut unless `fresh`, and sends the last pose again.
+    async fn reconnect(&mut self, fresh: bool) -> Result<(), ClientError> {
+        self.ws = None;
+        self.counters.reconnects += 1;
+        let resume = (!fresh).then(|| Resume {
+            terrain_id: self.info.id,
+            snapshot: Snapshot::of(&self.geom.shape, self.mirror.cut()),
+        });
+        let (ws, w) = Self::establish(&self.config, resume).await?;
+        let same_terrain = w.terrain == self.info;
+        if w.resumed && same_terrain && w.digest == self.mirror.cut().digest() {
+            self.counters.resumes += 1;
+        } else {
+            // Start again from the root (after a desync, or on a server with another terrain).
+            self.info = w.terrain.clone();
+            self.geom = self
+                .info
+                .geometry()
+                .map_err(|e| ClientError::Protocol(format!("bad terrain in welcome: {e}")))?;
+            self.mirror = Mirror::new(&self.geom, self.info.root_z);
+            self.mesh = FanMesh::new(&self.geom.shape, self.mirror.cut());
+        }
+        self.max_in_flight = w.max_in_flight;
+        self.ws = Some(ws);
+        if let Some((_, cam)) = self.last_pose {
+            self.send_pose(cam).await?;
+        }
+        Ok(())
+    }
+
+    async fn send(&mut self, msg: &ClientMsg) -> bool {
+        let Some(ws) = self.ws.as_mut() else {
+            return false;
+        };
+        ws.send(Message::Binary(codec::encode(msg).into()))
+            .await
+            .is_ok()
+    }
+
+    /// Sends a camera pose; returns its sequence number. Reconnects if the connection is gone.
+    pub async fn send_pose(&mut self, camera: Camera) -> Result<u64, ClientError> {
+        let seq = self.next_pose_seq;
+        self.next_pose_seq += 1;
+        self.last_pose = Some((seq, camera));
+        let msg = ClientMsg::Pose {
+            seq,
+            camera: WireCamera::from(camera),
+        };
+        if !self.send(&msg).await {
+            // The reconnect sends the pose again.
+            Box::pin(self.reconnect(false)).await?;
+        }
+        Ok(seq)
+    }
+
+    /// Waits for the next delta, applies it to the mirror and mesh, checks its digest and
+    /// acknowledges it. Drops, drains and desyncs are handled here: the wait goes on.
+    pub async fn next_delta(&mut self) -> Result<Applied, ClientError> {
+        loop {
+            let Some(ws) = self.ws.as_mut() else {
+                self.reconnect(false).await?;
+                continue;
+            };
+            let msg = match ws.next().await {
+                Some(Ok(Message::Binary(b))) => b,
+                Some(Ok(Message::Close(frame))) => {
+                    let (code, text) = frame
+                        .map(|f| (u16::from(f.code), f.reason.to_string()))
+                        .unwrap_or((1005, String::new()));
+                    closed(code, text)?;
+                    self.reconnect(false).await?;
+                    continue;
+                }
+                Some(Ok(_)) => continue,
+                Some(Err(_)) | None => {
+                    self.reconnect(false).await?;
+                    continue;
+                }
+            };
+            let bytes = msg.len();
+            self.counters.bytes_in += bytes as u64;
+            let d = match decode(&msg)? {
+                ServerMsg::Delta(d) => d,
+                ServerMsg::Reconnect { after_ms } => {
+                    tokio::time::sleep(Duration::from_millis(u64::from(after_ms))).await;
+                    self.reconnect(false).await?;
+                    continue;
+                }
+                ServerMsg::Welcome(_) => {
+                    return Err(ClientError::Protocol("a second welcome".into()));
+                }
+            };
+            let delta = d
+                .delta
+                .unpack(&self.geom.shape, self.geom.z_quantum)
+                .map_err(|e| ClientError::Protocol(format!("bad delta: {e}")))?;
+            let shape = &self.geom.shape;
+            let mesh = &mut self.mesh;
+            let applied = self
+                .mirror
+                .apply(&self.geom, &delta, |c, n| mesh.update_around(shape, c, n));
+            if applied.is_err() {
+                self.counters.desyncs += 1;
+                tracing::warn!("desync after delta {}: starting again", d.delta.seq);
+                self.reconnect(true).await?;
+                continue;
+            }
+            self.counters.deltas += 1;
+            self.send(&ClientMsg::Ack { seq: d.delta.seq }).await;
+            return Ok(Applied {
+                seq: d.delta.seq,
+                pose_seq: d.pose_seq,
+                complete: d.complete,
+                bytes,
+                changes: delta.merges.len() + delta.splits.len(),
+            });
+        }
+    }
+
+    /// Waits until a complete delta reflects pose `seq` (or a newer one).
+    pub async fn wait_for_pose(&mut self, seq: u64) -> Result<Vec<Applied>, ClientError> {
+        let mut got = Vec::new();
+        loop {
+            let a = self.next_delta().await?;
+            got.push(a);
+            if a.pose_seq >= seq && a.complete {
+                return Ok(got);
+            }
+        }
+    }
+
+    /// Drops the connection without a close handshake, as a network failure would (for tests of
+    /// resume). The next call reconnects.
+    pub fn drop_connection(&mut self) {
+        self.ws = None;
+    }
+
+    /// Closes the session politely.
+    pub async fn close(mut self) {
+        if let Some(ws) = self.ws.as_mut() {
+            let _ = ws.close(None).await;
+        }
+    }
+
+    /// The terrain.
+    pub fn terrain(&self) -> &TerrainInfo {
+        &self.info
+    }
+
+    /// The terrain's geometry.
+    pub fn geometry(&self) -> &TerrainGeometry {
+        &self.geom
+    }
+
+    /// The mirrored cut with heights.
+    pub fn mirror(&self) -> &Mirror {
+        &self.mirror
+    }
+
+    /// The mesh of the mirrored cut.
+    pub fn mesh(&self) -> &FanMesh {
+        &self.mesh
+    }
+
+    /// Mutable mesh access, for renderers that take its dirty cells.
+    pub fn mesh_mut(&mut self) -> &mut FanMesh {
+        &mut self.mesh
+    }
+
+    /// The server's window of unacknowledged deltas.
+    pub fn max_in_flight(&self) -> u32 {
+        self.max_in_flight
+    }
+
+    /// Counters over the session's life.
+    pub fn counters(&self) -> Counters {
+        self.counters
+    }
+}

@@ -1,0 +1,388 @@
+//! Server configuration: command-line flags, then `RELIEF_*` environment variables, then an
+//! optional TOML file, then the defaults, in that order of precedence.
+//!
+//! Every option is an `Option` in [`ServeArgs`] (clap fills it from a flag or its variable) and
+//! in [`FileConfig`] (serde fills it from the file); [`ServeArgs::resolve`] takes the first one
+//! set and falls back to [`Limits::default`] and the other defaults documented on each flag.
+
+use serde::Deserialize;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// The default listening address.
+pub const DEFAULT_ADDR: &str = "127.0.0.1:8080";
+
+/// `relief-server serve` options. Each help text states the default.
+#[derive(Clone, Debug, Default, clap::Args)]
+pub struct ServeArgs {
+    /// A store built by `relief-server build` [default: the embedded terrain].
+    #[arg(long, env = "RELIEF_STORE", conflicts_with = "dem")]
+    pub store: Option<PathBuf>,
+    /// A DEM to build a store from on start (cached): GeoTIFF, or `synthetic:SIZE[:SEED]`
+    /// [default: the embedded terrain, a 257x193 crop of Mount Fuji].
+    #[arg(long, env = "RELIEF_DEM")]
+    pub dem: Option<String>,
+    /// Address to listen on [default: 127.0.0.1:8080].
+    #[arg(long, env = "RELIEF_ADDR")]
+    pub addr: Option<SocketAddr>,
+    /// Where built stores are cached [default: $XDG_CACHE_HOME/relief, else ~/.cache/relief].
+    #[arg(long, env = "RELIEF_CACHE_DIR")]
+    pub cache_dir: Option<PathBuf>,
+    /// A TOML file with any of these options, named as here with underscores
+    /// (e.g. `max_sessions = 100`). Flags and environment variables override it.
+    #[arg(long, env = "RELIEF_CONFIG")]
+    pub config: Option<PathBuf>,
+    /// Largest message a client may send, bytes [default: 1048576].
+    #[arg(long, env = "RELIEF_MAX_MESSAGE_BYTES")]
+    pub max_message_bytes: Option<u32>,
+    /// Most sessions at once [default: 10000].
+    #[arg(long, env = "RELIEF_MAX_SESSIONS")]
+    pub max_sessions: Option<u32>,
+    /// Most sessions at once from one IP address [default: 1000].
+    #[arg(long, env = "RELIEF_MAX_SESSIONS_PER_IP")]
+    pub max_sessions_per_ip: Option<u32>,
+    /// Close a session after this many seconds without a message from its client [default: 60].
+    #[arg(long, env = "RELIEF_IDLE_TIMEOUT_S")]
+    pub idle_timeout_s: Option<f64>,
+    /// Drop a connection whose request headers take longer than this, seconds (against
+    /// slowloris) [default: 10].
+    #[arg(long, env = "RELIEF_HEADER_TIMEOUT_S")]
+    pub header_timeout_s: Option<f64>,
+    /// New connections per second allowed from one IP address, with a burst of twice as many
+    /// [default: 100].
+    #[arg(long, env = "RELIEF_CONN_RATE_PER_IP")]
+    pub conn_rate_per_ip: Option<f64>,
+    /// Deltas a session may have unacknowledged [default: 4].
+    #[arg(long, env = "RELIEF_MAX_IN_FLIGHT")]
+    pub max_in_flight: Option<u32>,
+    /// Most interior nodes in a resume or base snapshot [default: 8000000].
+    #[arg(long, env = "RELIEF_MAX_CUT_NODES")]
+    pub max_cut_nodes: Option<u32>,
+    /// On SIGTERM or Ctrl-C, seconds to wait for sessions to close before exiting [default: 5].
+    #[arg(long, env = "RELIEF_DRAIN_TIMEOUT_S")]
+    pub drain_timeout_s: Option<f64>,
+}
+
+/// The TOML file: the same options as the flags.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileConfig {
+    /// See [`ServeArgs::store`].
+    pub store: Option<PathBuf>,
+    /// See [`ServeArgs::dem`].
+    pub dem: Option<String>,
+    /// See [`ServeArgs::addr`].
+    pub addr: Option<SocketAddr>,
+    /// See [`ServeArgs::cache_dir`].
+    pub cache_dir: Option<PathBuf>,
+    /// See [`ServeArgs::max_message_bytes`].
+    pub max_message_bytes: Option<u32>,
+    /// See [`ServeArgs::max_sessions`].
+    pub max_sessions: Option<u32>,
+    /// See [`ServeArgs::max_sessions_per_ip`].
+    pub max_sessions_per_ip: Option<u32>,
+    /// See [`ServeArgs::idle_timeout_s`].
+    pub idle_timeout_s: Option<f64>,
+    /// See [`ServeArgs::header_timeout_s`].
+    pub header_timeout_s: Option<f64>,
+    /// See [`ServeArgs::conn_rate_per_ip`].
+    pub conn_rate_per_ip: Option<f64>,
+    /// See [`ServeArgs::max_in_flight`].
+    pub max_in_flight: Option<u32>,
+    /// See [`ServeArgs::max_cut_nodes`].
+    pub max_cut_nodes: Option<u32>,
+    /// See [`ServeArgs::drain_timeout_s`].
+    pub drain_timeout_s: Option<f64>,
+}
+
+/// Which terrain to serve.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TerrainSource {
+    /// The crop committed to the repository, built into the cache on first start.
+    Embedded,
+    /// A store file, mapped as it is.
+    Store(PathBuf),
+    /// A DEM, built into the cache on first start.
+    Dem(String),
+}
+
+/// The limits that protect the server from its clients.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Limits {
+    /// Largest client message, bytes.
+    pub max_message_bytes: u32,
+    /// Most sessions at once.
+    pub max_sessions: u32,
+    /// Most sessions at once per IP address.
+    pub max_sessions_per_ip: u32,
+    /// Longest silence from a client before its session closes.
+    pub idle_timeout: Duration,
+    /// Longest time a connection may take to send its request headers.
+    pub header_timeout: Duration,
+    /// Connections per second per IP address (burst: twice this).
+    pub conn_rate_per_ip: f64,
+    /// Unacknowledged deltas per session.
+    pub max_in_flight: u32,
+    /// Interior nodes a snapshot may name.
+    pub max_cut_nodes: u32,
+    /// Longest wait for sessions to end on shutdown.
+    pub drain_timeout: Duration,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            max_message_bytes: 1 << 20,
+            max_sessions: 10_000,
+            max_sessions_per_ip: 1000,
+            idle_timeout: Duration::from_secs(60),
+            header_timeout: Duration::from_secs(10),
+            conn_rate_per_ip: 100.0,
+            max_in_flight: 4,
+            max_cut_nodes: 8_000_000,
+            drain_timeout: Duration::from_secs(5),
+        }
+    }
+}
+
+/// The resolved configuration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServeConfig {
+    /// The terrain.
+    pub source: TerrainSource,
+    /// Where to listen.
+    pub addr: SocketAddr,
+    /// Where built stores are cached.
+    pub cache_dir: PathBuf,
+    /// The limits.
+    pub limits: Limits,
+}
+
+/// A configuration that cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The TOML file cannot be read.
+    #[error("cannot read the config file {path}: {source}")]
+    Read {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The TOML file does not parse or names an unknown option.
+    #[error("config file {path}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// The parser's message.
+        message: String,
+    },
+    /// An option is out of range.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+fn seconds(name: &str, s: f64) -> Result<Duration, ConfigError> {
+    if s.is_finite() && s > 0.0 && s < 1e7 {
+        Ok(Duration::from_secs_f64(s))
+    } else {
+        Err(ConfigError::Invalid(format!(
+            "{name} must be a positive number of seconds, got {s}"
+        )))
+    }
+}
+
+fn positive(name: &str, v: u32) -> Result<u32, ConfigError> {
+    if v > 0 {
+        Ok(v)
+    } else {
+        Err(ConfigError::Invalid(format!("{name} must be at least 1")))
+    }
+}
+
+/// The default cache folder.
+pub fn default_cache_dir() -> PathBuf {
+    if let Some(x) = std::env::var_os("XDG_CACHE_HOME").filter(|x| !x.is_empty()) {
+        return PathBuf::from(x).join("relief");
+    }
+    if let Some(h) = std::env::var_os("HOME").filter(|h| !h.is_empty()) {
+        return PathBuf::from(h).join(".cache").join("relief");
+    }
+    std::env::temp_dir().join("relief-cache")
+}
+
+fn read_file(path: &Path) -> Result<FileConfig, ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        path: path.display().to_string(),
+        source,
+    })?;
+    toml::from_str(&text).map_err(|e| ConfigError::Parse {
+        path: path.display().to_string(),
+        message: e.message().to_string(),
+    })
+}
+
+impl ServeArgs {
+    /// Flags and variables first, then the TOML file, then the defaults.
+    pub fn resolve(&self) -> Result<ServeConfig, ConfigError> {
+        let file = match &self.config {
+            Some(p) => read_file(p)?,
+            None => FileConfig::default(),
+        };
+        let d = Limits::default();
+        let store = self.store.clone().or(file.store);
+        let dem = self.dem.clone().or(file.dem);
+        let source = match (store, dem) {
+            (Some(_), Some(_)) => {
+                return Err(ConfigError::Invalid(
+                    "give either a store or a DEM, not both".into(),
+                ));
+            }
+            (Some(s), None) => TerrainSource::Store(s),
+            (None, Some(d)) => TerrainSource::Dem(d),
+            (None, None) => TerrainSource::Embedded,
+        };
+        let rate = self
+            .conn_rate_per_ip
+            .or(file.conn_rate_per_ip)
+            .unwrap_or(d.conn_rate_per_ip);
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(ConfigError::Invalid(format!(
+                "conn_rate_per_ip must be positive, got {rate}"
+            )));
+        }
+        let max_message_bytes = positive(
+            "max_message_bytes",
+            self.max_message_bytes
+                .or(file.max_message_bytes)
+                .unwrap_or(d.max_message_bytes),
+        )?;
+        if max_message_bytes < 256 || max_message_bytes as usize > relief_proto::codec::HARD_LIMIT {
+            return Err(ConfigError::Invalid(format!(
+                "max_message_bytes must be between 256 and {}, got {max_message_bytes}",
+                relief_proto::codec::HARD_LIMIT
+            )));
+        }
+        let limits = Limits {
+            max_message_bytes,
+            max_sessions: positive(
+                "max_sessions",
+                self.max_sessions
+                    .or(file.max_sessions)
+                    .unwrap_or(d.max_sessions),
+            )?,
+            max_sessions_per_ip: positive(
+                "max_sessions_per_ip",
+                self.max_sessions_per_ip
+                    .or(file.max_sessions_per_ip)
+                    .unwrap_or(d.max_sessions_per_ip),
+            )?,
+            idle_timeout: match self.idle_timeout_s.or(file.idle_timeout_s) {
+                Some(s) => seconds("idle_timeout_s", s)?,
+                None => d.idle_timeout,
+            },
+            header_timeout: match self.header_timeout_s.or(file.header_timeout_s) {
+                Some(s) => seconds("header_timeout_s", s)?,
+                None => d.header_timeout,
+            },
+            conn_rate_per_ip: rate,
+            max_in_flight: positive(
+                "max_in_flight",
+                self.max_in_flight
+                    .or(file.max_in_flight)
+                    .unwrap_or(d.max_in_flight),
+            )?,
+            max_cut_nodes: positive(
+                "max_cut_nodes",
+                self.max_cut_nodes
+                    .or(file.max_cut_nodes)
+                    .unwrap_or(d.max_cut_nodes),
+            )?,
+            drain_timeout: match self.drain_timeout_s.or(file.drain_timeout_s) {
+                Some(s) => seconds("drain_timeout_s", s)?,
+                None => d.drain_timeout,
+            },
+        };
+        let addr = match self.addr.or(file.addr) {
+            Some(a) => a,
+            None => DEFAULT_ADDR
+                .parse()
+                .map_err(|_| ConfigError::Invalid("bad default address".into()))?,
+        };
+        Ok(ServeConfig {
+            source,
+            addr,
+            cache_dir: self
+                .cache_dir
+                .clone()
+                .or(file.cache_dir)
+                .unwrap_or_else(default_cache_dir),
+            limits,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    #[test]
+    fn flags_beat_the_file_which_beats_the_defaults() {
+        let mut f = tempfile::NamedTempFile::new().unwrap();
+        writeln!(
+            f,
+            "max_sessions = 7\nmax_in_flight = 2\nidle_timeout_s = 1.5"
+        )
+        .unwrap();
+        let args = ServeArgs {
+            config: Some(f.path().to_path_buf()),
+            max_sessions: Some(9),
+            ..ServeArgs::default()
+        };
+        let c = args.resolve().unwrap();
+        assert_eq!(c.limits.max_sessions, 9);
+        assert_eq!(c.limits.max_in_flight, 2);
+        assert_eq!(c.limits.idle_timeout, Duration::from_millis(1500));
+        assert_eq!(
+            c.limits.max_sessions_per_ip,
+            Limits::default().max_sessions_per_ip
+        );
+        assert_eq!(c.source, TerrainSource::Embedded);
+        assert_eq!(c.addr.to_string(), DEFAULT_ADDR);
+    }
+
+    #[test]
+    fn bad_files_and_values_are_named() {
+        let mut f = tempfile::NamedTempFile::new().unwrap();
+        writeln!(f, "max_sesions = 7").unwrap();
+        let args = ServeArgs {
+            config: Some(f.path().to_path_buf()),
+            ..ServeArgs::default()
+        };
+        let e = args.resolve().unwrap_err().to_string();
+        assert!(e.contains("max_sesions"), "{e}");
+
+        let args = ServeArgs {
+            idle_timeout_s: Some(f64::NAN),
+            ..ServeArgs::default()
+        };
+        assert!(
+            args.resolve()
+                .unwrap_err()
+                .to_string()
+                .contains("idle_timeout_s")
+        );
+        let args = ServeArgs {
+            config: Some("/nonexistent/relief.toml".into()),
+            ..ServeArgs::default()
+        };
+        assert!(
+            args.resolve()
+                .unwrap_err()
+                .to_string()
+                .contains("cannot read")
+        );
+    }
+}

@@ -1,0 +1,164 @@
+//! The streaming server (DESIGN.md section 6): sessions over WebSocket, the HTTP API, limits,
+//! metrics and the graceful drain, on axum, hyper and tokio.
+//!
+//! - [`config`]: flags, `RELIEF_*` variables and the TOML file, resolved into [`ServeConfig`].
+//! - [`source`]: the terrain to serve: a store, or a DEM built into the cache on first start.
+//! - [`state`]: the shared state and [`state::app`], the router (testable without a socket).
+//! - [`http`]: the HTTP endpoints and their error type.
+//! - [`ws`]: the WebSocket upgrade and session admission.
+//! - [`session`]: one session's protocol loop, generic over `Sink + Stream`.
+//! - [`stream`]: one session's LOD state and deltas, without I/O.
+//! - [`validate`]: checks of client-supplied lenses, cameras and parameters.
+//! - [`limits`]: session counts per server and per address, and the connection rate.
+//! - [`metrics`]: counters and the Prometheus exposition.
+//! - [`listen`]: the accept loop with the header timeout, and the drain.
+
+pub mod config;
+pub mod http;
+pub mod limits;
+pub mod listen;
+pub mod metrics;
+pub mod session;
+pub mod source;
+pub mod state;
+pub mod stream;
+pub mod validate;
+pub mod ws;
+
+pub use config::{ServeArgs, ServeConfig};
+
+use state::{AppState, Terrain};
+use std::net::SocketAddr;
+use std::sync::Arc;
+use tokio::net::TcpListener;
+use tokio::sync::watch;
+
+/// Why the server could not start or stopped with an error.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// The address cannot be bound.
+    #[error("cannot listen on {addr}: {source}")]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The terrain cannot be opened.
+    #[error(transparent)]
+    Terrain(#[from] source::SourceError),
+}
+
+/// A bound server, not yet serving.
+pub struct Server {
+    /// The listening socket.
+    listener: TcpListener,
+    /// The shared state.
+    state: Arc<AppState>,
+    /// Turns the state's draining flag on.
+    draining: watch::Sender<bool>,
+    /// What to serve and where to cache it.
+    config: ServeConfig,
+}
+
+impl Server {
+    /// Binds the configured address (port 0 picks a free one).
+    pub async fn bind(config: ServeConfig) -> Result<Server, ServeError> {
+        let listener = TcpListener::bind(config.addr)
+            .await
+            .map_err(|source| ServeError::Bind {
+                addr: config.addr,
+                source,
+            })?;
+        let (draining, rx) = watch::channel(false);
+        Ok(Server {
+            listener,
+            state: Arc::new(AppState::new(config.limits.clone(), rx)),
+            draining,
+            config,
+        })
+    }
+
+    /// The bound address.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.listener.local_addr().unwrap_or(self.config.addr)
+    }
+
+    /// The shared state (for tests and embedding).
+    pub fn state(&self) -> Arc<AppState> {
+        self.state.clone()
+    }
+
+    /// Serves until `shutdown` completes, then drains. The terrain is opened (and built, if it
+    /// must be) in the background; `/readyz` turns ready when it is mapped. A terrain that cannot
+    /// be opened stops the server with that error.
+    pub async fn run(self, shutdown: impl Future<Output = ()>) -> Result<(), ServeError> {
+        let (src, cache) = (self.config.source.clone(), self.config.cache_dir.clone());
+        let mut loader = tokio::task::spawn_blocking(move || source::open_terrain(&src, &cache));
+        let state = self.state.clone();
+        let (failed_tx, failed_rx) = tokio::sync::oneshot::channel();
+        tokio::spawn(async move {
+            match (&mut loader).await {
+                Ok(Ok(store)) => {
+                    let t = Terrain::new(store);
+                    tracing::info!(
+                        "ready: {}x{} samples, terrain {:016x}",
+                        t.info.width,
+                        t.info.height,
+                        t.info.id
+                    );
+                    let _ = state.terrain.set(Arc::new(t));
+                }
+                Ok(Err(e)) => {
+                    let _ = failed_tx.send(e);
+                }
+                Err(e) => tracing::error!("terrain loader failed: {e}"),
+            }
+        });
+        let (failure_tx, mut failure_rx) = tokio::sync::oneshot::channel();
+        let stop = async move {
+            tokio::select! {
+                _ = shutdown => {}
+                // A dropped sender (the terrain loaded) disables this branch.
+                Ok(e) = failed_rx => {
+                    let _ = failure_tx.send(e);
+                }
+            }
+        };
+        tracing::info!("listening on http://{}", self.local_addr());
+        listen::serve(self.listener, self.state, self.draining, stop).await;
+        match failure_rx.try_recv() {
+            Ok(e) => Err(e.into()),
+            Err(_) => Ok(()),
+        }
+    }
+}
+
+/// Completes on SIGTERM or Ctrl-C.
+pub async fn signal() {
+    let ctrl_c = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut term) => {
+                tokio::select! {
+                    _ = ctrl_c => {}
+                    _ = term.recv() => {}
+                }
+            }
+            Err(_) => {
+                let _ = ctrl_c.await;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = ctrl_c.await;
+    }
+    tracing::info!("shutdown signal received");
+}
+
+/// Runs the server of `config` until SIGTERM or Ctrl-C.
+pub async fn run(config: ServeConfig) -> Result<(), ServeError> {
+    Server::bind(config).await?.run(signal()).await
+}

@@ -1,0 +1,200 @@
+//! The state every handler shares, and [`app`], the router over it (callable without a socket).
+
+use super::config::Limits;
+use super::limits::SessionLimits;
+use super::metrics::Metrics;
+use super::{http, ws};
+use crate::store::Store;
+use axum::Router;
+use axum::extract::DefaultBodyLimit;
+use axum::routing::{get, post};
+use relief_proto::msg::TerrainInfo;
+use serde::Serialize;
+use std::collections::HashMap;
+use std::net::SocketAddr;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::time::Instant;
+use tokio::sync::watch;
+
+/// The served terrain: the mapped store and what clients are told of it.
+pub struct Terrain {
+    /// The mapped store.
+    pub store: Store,
+    /// The metadata sent in welcomes and by `GET /v1/terrain`.
+    pub info: TerrainInfo,
+}
+
+impl Terrain {
+    /// Wraps an opened store.
+    pub fn new(store: Store) -> Terrain {
+        let g = store.geometry();
+        let info = TerrainInfo {
+            id: store.terrain_id(),
+            width: g.shape.width(),
+            height: g.shape.height(),
+            spacing_x: g.frame.dx,
+            spacing_y: g.frame.dy,
+            z_quantum: g.z_quantum,
+            root_z: store.z()[0],
+            height_range: [
+                store.meta().height_min as f32,
+                store.meta().height_max as f32,
+            ],
+        };
+        Terrain { store, info }
+    }
+}
+
+/// What `GET /v1/sessions` reports of one session, updated by the session as it runs.
+#[derive(Debug)]
+pub struct SessionStats {
+    /// The client's address.
+    pub peer: SocketAddr,
+    /// When the session began.
+    pub started: Instant,
+    /// Deltas sent.
+    pub deltas: AtomicU64,
+    /// Newest acknowledged delta.
+    pub acked: AtomicU64,
+    /// Message bytes sent.
+    pub bytes_out: AtomicU64,
+    /// Active nodes in the session's cut.
+    pub active_nodes: AtomicU64,
+    /// Bytes the session's LOD state holds.
+    pub memory_bytes: AtomicU64,
+}
+
+/// One session as `GET /v1/sessions` lists it.
+#[derive(Debug, Serialize)]
+pub struct SessionReport {
+    /// Session id, as in the welcome.
+    pub id: u64,
+    /// Client address.
+    pub peer: String,
+    /// Seconds since the session began.
+    pub age_s: f64,
+    /// Deltas sent.
+    pub deltas: u64,
+    /// Deltas sent but not acknowledged.
+    pub unacked: u64,
+    /// Message bytes sent.
+    pub bytes_out: u64,
+    /// Active nodes in the cut.
+    pub active_nodes: u64,
+    /// Bytes of LOD state.
+    pub memory_bytes: u64,
+}
+
+/// Shared server state.
+pub struct AppState {
+    /// The terrain, set once the store is mapped (`/readyz` turns ready then).
+    pub terrain: OnceLock<Arc<Terrain>>,
+    /// Limits from the configuration.
+    pub limits: Limits,
+    /// Counters for `/metrics`.
+    pub metrics: Metrics,
+    /// Session admission.
+    pub sessions: SessionLimits,
+    /// Open sessions by id, for `GET /v1/sessions`.
+    pub registry: Mutex<HashMap<u64, Arc<SessionStats>>>,
+    /// The next session id.
+    next_id: AtomicU64,
+    /// Turns true when the server starts draining: sessions tell their clients to reconnect.
+    pub draining: watch::Receiver<bool>,
+}
+
+impl AppState {
+    /// State with `limits`, not yet ready; `draining` turns true on shutdown.
+    pub fn new(limits: Limits, draining: watch::Receiver<bool>) -> AppState {
+        AppState {
+            terrain: OnceLock::new(),
+            sessions: SessionLimits::new(limits.max_sessions, limits.max_sessions_per_ip),
+            limits,
+            metrics: Metrics::default(),
+            registry: Mutex::default(),
+            // Ids start at a random-looking point so that two server lives rarely share ids.
+            next_id: AtomicU64::new(
+                std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map(|d| d.as_micros() as u64)
+                    .unwrap_or(1)
+                    << 8,
+            ),
+            draining,
+        }
+    }
+
+    /// The terrain, once ready.
+    pub fn terrain(&self) -> Option<Arc<Terrain>> {
+        self.terrain.get().cloned()
+    }
+
+    /// Registers a new session and returns its id and stats.
+    pub fn register(&self, peer: SocketAddr) -> (u64, Arc<SessionStats>) {
+        let id = self.next_id.fetch_add(1, Relaxed);
+        let stats = Arc::new(SessionStats {
+            peer,
+            started: Instant::now(),
+            deltas: AtomicU64::new(0),
+            acked: AtomicU64::new(0),
+            bytes_out: AtomicU64::new(0),
+            active_nodes: AtomicU64::new(0),
+            memory_bytes: AtomicU64::new(0),
+        });
+        self.registry
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(id, stats.clone());
+        (id, stats)
+    }
+
+    /// Removes a session from the registry.
+    pub fn unregister(&self, id: u64) {
+        self.registry
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .remove(&id);
+    }
+
+    /// Every open session.
+    pub fn session_reports(&self) -> Vec<SessionReport> {
+        let reg = self.registry.lock().unwrap_or_else(|e| e.into_inner());
+        let mut v: Vec<SessionReport> = reg
+            .iter()
+            .map(|(&id, s)| {
+                let deltas = s.deltas.load(Relaxed);
+                SessionReport {
+                    id,
+                    peer: s.peer.to_string(),
+                    age_s: s.started.elapsed().as_secs_f64(),
+                    deltas,
+                    unacked: deltas.saturating_sub(s.acked.load(Relaxed)),
+                    bytes_out: s.bytes_out.load(Relaxed),
+                    active_nodes: s.active_nodes.load(Relaxed),
+                    memory_bytes: s.memory_bytes.load(Relaxed),
+                }
+            })
+            .collect();
+        v.sort_by_key(|r| r.id);
+        v
+    }
+}
+
+/// The router: every route of the server over `state`.
+pub fn app(state: Arc<AppState>) -> Router {
+    Router::new()
+        .route("/v1/stream", get(ws::upgrade))
+        .route("/v1/terrain", get(http::terrain))
+        .route("/v1/lod", post(http::lod))
+        .route("/v1/heights", post(http::heights))
+        .route("/v1/sessions", get(http::sessions))
+        .route("/metrics", get(http::metrics))
+        .route("/healthz", get(http::healthz))
+        .route("/readyz", get(http::readyz))
+        .fallback(http::not_found)
+        .layer(DefaultBodyLimit::max(
+            state.limits.max_message_bytes as usize,
+        ))
+        .with_state(state)
+}
