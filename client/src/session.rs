@@ -155,7 +155,7 @@ async fn dial(url: &str) -> Result<Ws, String> {
 /// One step of the handshake's outcome.
 enum Opened {
     /// Welcomed on this connection.
-    Welcome(Ws, relief_proto::msg::Welcome),
+    Welcome(Box<Ws>, relief_proto::msg::Welcome),
     /// Closed for a reason worth retrying.
     Retry(String),
 }
@@ -179,7 +179,7 @@ async fn handshake(config: &SessionConfig, resume: Option<Resume>) -> Result<Ope
     loop {
         match ws.next().await {
             Some(Ok(Message::Binary(b))) => match decode(&b)? {
-                ServerMsg::Welcome(w) => return Ok(Opened::Welcome(ws, w)),
+                ServerMsg::Welcome(w) => return Ok(Opened::Welcome(Box::new(ws), w)),
                 other => {
                     return Err(ClientError::Protocol(format!(
                         "expected a welcome, got {other:?}"
@@ -246,7 +246,7 @@ impl Session {
                             w.version
                         )));
                     }
-                    return Ok((ws, w));
+                    return Ok((*ws, w));
                 }
                 Opened::Retry(e) => e,
             };

@@ -277,7 +277,7 @@ mod tests {
     fn delta_msg(seq: u64, digest: u64, body: Vec<u8>) -> ServerMsg {
         ServerMsg::Delta(SessionDelta {
             pose_seq: seq / 2,
-            complete: seq % 2 == 0,
+            complete: seq.is_multiple_of(2),
             delta: WireDelta { seq, digest, body },
         })
     }

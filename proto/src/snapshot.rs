@@ -60,7 +60,7 @@ impl Snapshot {
                 continue;
             }
             let interior = cut.is_interior(shape, node);
-            if n_bits % 8 == 0 {
+            if n_bits.is_multiple_of(8) {
                 bits.push(0);
             }
             if interior {
@@ -106,7 +106,7 @@ impl Snapshot {
             }
         }
         let rest = total - at;
-        let padding_set = at % 8 != 0 && self.bits[at / 8] >> (at % 8) != 0;
+        let padding_set = !at.is_multiple_of(8) && self.bits[at / 8] >> (at % 8) != 0;
         if rest >= 8 || padding_set {
             return Err(SnapshotError::Trailing(rest));
         }

@@ -5,8 +5,10 @@
 //! - [`preprocess`]: a DEM in, a store out.
 //! - [`lod`]: the LOD engines (vertex stream today) and pixel-error measurement.
 //! - [`bench`]: in-process benchmarks.
+//! - [`cli`]: the `relief-server` command line.
 //! - [`serve`]: the streaming server: WebSocket sessions, HTTP API, limits, metrics, drain.
 pub mod bench;
+pub mod cli;
 pub mod dem;
 pub mod lod;
 pub mod preprocess;

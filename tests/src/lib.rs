@@ -1,1 +1,217 @@
-//! End-to-end tests of Relief live in `tests/`; this library is empty.
+//! Helpers for Relief's end-to-end tests (the tests themselves are in `tests/`): a store built
+//! from the committed Fuji crop, the real server started in process or as a child process on
+//! 127.0.0.1, camera paths over the terrain, and raw protocol frames.
+
+use relief_proto::codec;
+use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, StreamKind};
+use relief_proto::path::{PathKind, camera_path};
+use relief_proto::view::{Camera, Lens};
+use relief_server::serve::config::{Limits, ServeConfig, TerrainSource};
+use relief_server::serve::state::AppState;
+use relief_server::serve::{ServeError, Server};
+use relief_server::store::Store;
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+use std::time::{Duration, Instant};
+
+/// The store of the embedded crop, built once per test binary.
+pub fn test_store() -> &'static Path {
+    static STORE: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    let (_, p) = STORE.get_or_init(|| {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("fuji.relief");
+        let d = relief_server::dem::embedded_default().expect("embedded DEM");
+        relief_server::preprocess::build_store(&d, &path, None, false).expect("store");
+        (dir, path)
+    });
+    p
+}
+
+/// A server configuration for tests: the test store on a free loopback port.
+pub fn config(limits: Limits) -> ServeConfig {
+    ServeConfig {
+        source: TerrainSource::Store(test_store().to_path_buf()),
+        addr: "127.0.0.1:0".parse().expect("address"),
+        cache_dir: std::env::temp_dir().join("relief-test-cache"),
+        limits,
+    }
+}
+
+/// The real server, running in this process.
+pub struct TestServer {
+    /// Where it listens.
+    pub addr: SocketAddr,
+    /// Its state, to look inside.
+    pub state: Arc<AppState>,
+    /// Completes the shutdown future.
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+    /// The serving task.
+    task: tokio::task::JoinHandle<Result<(), ServeError>>,
+}
+
+impl TestServer {
+    /// Starts a server with `limits` and waits until it is ready.
+    pub async fn start(limits: Limits) -> TestServer {
+        Self::start_with(config(limits)).await
+    }
+
+    /// Starts a server with `config` and waits until it is ready.
+    pub async fn start_with(config: ServeConfig) -> TestServer {
+        let server = Server::bind(config).await.expect("bind");
+        let addr = server.local_addr();
+        let state = server.state();
+        let (tx, rx) = tokio::sync::oneshot::channel();
+        let task = tokio::spawn(server.run(async {
+            let _ = rx.await;
+        }));
+        let deadline = Instant::now() + Duration::from_secs(30);
+        while state.terrain().is_none() {
+            assert!(Instant::now() < deadline, "server not ready");
+            tokio::time::sleep(Duration::from_millis(10)).await;
+        }
+        TestServer {
+            addr,
+            state,
+            stop: Some(tx),
+            task,
+        }
+    }
+
+    /// The stream URL.
+    pub fn url(&self) -> String {
+        format!("ws://{}/v1/stream", self.addr)
+    }
+
+    /// The HTTP base URL.
+    pub fn http(&self) -> String {
+        format!("http://{}", self.addr)
+    }
+
+    /// Shuts down (drain included) and returns how long it took.
+    pub async fn stop(mut self) -> Duration {
+        let t = Instant::now();
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+        let _ = (&mut self.task).await;
+        t.elapsed()
+    }
+}
+
+/// The server as a child process (the `relief-test-server` binary, which is `relief-server`).
+pub struct ChildServer {
+    /// The process.
+    pub child: std::process::Child,
+    /// Where it listens.
+    pub addr: SocketAddr,
+}
+
+impl ChildServer {
+    /// Starts `relief-server serve` on `addr` with extra arguments and waits for `/readyz`.
+    pub async fn start(bin: &Path, addr: SocketAddr, extra: &[&str]) -> ChildServer {
+        let child = std::process::Command::new(bin)
+            .arg("serve")
+            .arg("--store")
+            .arg(test_store())
+            .arg("--addr")
+            .arg(addr.to_string())
+            .args(extra)
+            .env("RELIEF_LOG", "warn")
+            .spawn()
+            .expect("spawn server");
+        let s = ChildServer { child, addr };
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let ok = relief_client::http::request(
+                "GET",
+                &format!("http://{addr}/readyz"),
+                "text/plain",
+                Vec::new(),
+            )
+            .await
+            .is_ok();
+            if ok {
+                return s;
+            }
+            assert!(Instant::now() < deadline, "child server not ready");
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    }
+
+    /// Sends `signal` (e.g. "TERM", "KILL") to the process.
+    pub fn signal(&self, signal: &str) {
+        let status = std::process::Command::new("kill")
+            .arg(format!("-{signal}"))
+            .arg(self.child.id().to_string())
+            .status()
+            .expect("kill");
+        assert!(status.success());
+    }
+
+    /// Waits for the process to exit, up to `limit`; returns how long it took, or `None`.
+    pub fn wait(&mut self, limit: Duration) -> Option<Duration> {
+        let t = Instant::now();
+        while t.elapsed() < limit {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return Some(t.elapsed());
+            }
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        None
+    }
+}
+
+impl Drop for ChildServer {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A free loopback address (bound and released; good enough for a test restart).
+pub fn free_addr() -> SocketAddr {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    l.local_addr().expect("address")
+}
+
+/// Camera paths over the test terrain: path `i` of many, alternating the standard and stress
+/// loops, each starting at a different phase, `len` poses long.
+pub fn path(i: usize, len: usize) -> Vec<Camera> {
+    let store = Store::open(test_store()).expect("store");
+    let g = store.geometry();
+    let (w, h) = (g.shape.width(), g.shape.height());
+    let ground = |x: f32, y: f32| {
+        let (c, r) = g.frame.to_grid(x, y);
+        let c = (c.round().max(0.0) as u32).min(w - 1);
+        let r = (r.round().max(0.0) as u32).min(h - 1);
+        store.z()[g.shape.index(g.shape.leaf(c, r)) as usize] as f32 * g.z_quantum
+    };
+    let kind = if i.is_multiple_of(2) {
+        PathKind::Standard
+    } else {
+        PathKind::Stress
+    };
+    let ex = (w - 1) as f32 * g.frame.dx;
+    let ey = (h - 1) as f32 * g.frame.dy;
+    let cams = camera_path(kind, ex, ey, ground);
+    let start = (i * 37) % cams.len();
+    (0..len).map(|k| cams[(start + k) % cams.len()]).collect()
+}
+
+/// A hello frame with the standard lens, tau 1 and no budget.
+pub fn hello_frame(version: u32) -> Vec<u8> {
+    codec::encode(&ClientMsg::Hello(Hello {
+        version,
+        kind: StreamKind::Vertex,
+        lens: Lens::STANDARD.into(),
+        tau: 1.0,
+        budget: None,
+        resume: None,
+    }))
+}
+
+/// The current protocol's hello.
+pub fn hello() -> Vec<u8> {
+    hello_frame(PROTOCOL_VERSION)
+}

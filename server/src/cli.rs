@@ -1,0 +1,222 @@
+//! The `relief-server` command line: `serve`, `build`, `info` and `bench`. It lives in the
+//! library so that the binary stays a one-liner and end-to-end tests can run the same program
+//! as a child process.
+
+use crate::bench::lod::{self, LodBenchOptions};
+use crate::dem::{self, LoadOptions};
+use crate::lod::vertex::LodParams;
+use crate::preprocess;
+use anyhow::Context;
+use clap::{Args, Parser, Subcommand};
+use relief_proto::path::PathKind;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "relief-server",
+    version,
+    about = "Relief terrain LOD streaming server"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Serve a terrain: WebSocket sessions on /v1/stream, HTTP on /v1/terrain, /v1/lod,
+    /// /v1/heights, /v1/sessions, /metrics, /healthz and /readyz. With no options it serves the
+    /// embedded terrain on 127.0.0.1:8080. Stops on SIGTERM or Ctrl-C after draining.
+    Serve(Box<crate::serve::ServeArgs>),
+    /// Preprocess a DEM into a store (the vertex quadtree, memory-mapped by the server).
+    Build {
+        /// The DEM: a GeoTIFF (int16, uint16, float32), a 16-bit grayscale PNG, or
+        /// `synthetic:SIZE[:SEED]` for a deterministic fractal terrain.
+        input: String,
+        /// Where to write the store.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Metres per stored height unit [default: 1 for whole-metre DEMs, else 0.1].
+        #[arg(long)]
+        z_quantum: Option<f64>,
+        #[command(flatten)]
+        dem: DemArgs,
+    },
+    /// Check a store completely (header, sizes, checksums) and print what it holds, as JSON.
+    Info {
+        /// The store file.
+        store: PathBuf,
+    },
+    /// Benchmarks.
+    Bench {
+        #[command(subcommand)]
+        which: BenchCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Fly a camera path through the vertex stream in process and report its figures.
+    Lod {
+        /// The DEM to fly over (same forms as `build`'s input).
+        #[arg(long)]
+        dem: String,
+        /// Which path: `standard` (60 s loop, 100-300 m above ground) or `stress` (faster, lower).
+        #[arg(long, default_value = "standard")]
+        path: PathKind,
+        /// Screen-space error threshold in pixels.
+        #[arg(long, default_value_t = 1.0)]
+        tau: f32,
+        /// Measure pixel error on every k-th frame [default: every frame on small grids, fewer
+        /// on large ones, never fewer than 60 frames].
+        #[arg(long)]
+        px_every: Option<usize>,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        dem_args: DemArgs,
+    },
+}
+
+/// How to read a DEM.
+#[derive(Args)]
+struct DemArgs {
+    /// PNG only: metres per 16-bit value.
+    #[arg(long, default_value_t = 1.0)]
+    png_scale: f64,
+    /// PNG only: metres added to every value.
+    #[arg(long, default_value_t = 0.0)]
+    png_offset: f64,
+    /// PNG only: the 16-bit value that means "no data" (use -1 for none).
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
+    png_nodata: i32,
+    /// Ground metres between columns (required for PNG; overrides the GeoTIFF's tags).
+    #[arg(long)]
+    spacing_x: Option<f64>,
+    /// Ground metres between rows (required for PNG; overrides the GeoTIFF's tags).
+    #[arg(long)]
+    spacing_y: Option<f64>,
+    /// Refuse DEMs with more samples than this.
+    #[arg(long, default_value_t = dem::DEFAULT_MAX_SAMPLES)]
+    max_samples: u64,
+    /// Hide progress bars.
+    #[arg(long)]
+    quiet: bool,
+}
+
+impl DemArgs {
+    fn load(&self, spec: &str) -> anyhow::Result<dem::Dem> {
+        let opts = LoadOptions {
+            max_samples: self.max_samples,
+            spacing_x: self.spacing_x,
+            spacing_y: self.spacing_y,
+            png: dem::PngOptions {
+                scale: self.png_scale,
+                offset: self.png_offset,
+                nodata_value: u16::try_from(self.png_nodata).ok(),
+            },
+            progress: !self.quiet,
+        };
+        dem::load(spec, &opts).context("cannot load the DEM")
+    }
+}
+
+/// Parses the arguments, runs the command, and turns an error into one line and exit code 1.
+pub fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // The whole chain on one line, no backtrace: these are input errors, not bugs.
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> anyhow::Result<()> {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_env("RELIEF_LOG")
+                .unwrap_or_else(|_| "info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    match Cli::parse().command {
+        Command::Serve(args) => {
+            let config = args.resolve().context("bad configuration")?;
+            tracing::info!(?config, "starting");
+            tokio::runtime::Builder::new_multi_thread()
+                .enable_all()
+                .build()?
+                .block_on(crate::serve::run(config))?;
+        }
+        Command::Build {
+            input,
+            output,
+            z_quantum,
+            dem,
+        } => {
+            let d = dem.load(&input)?;
+            let rep = preprocess::build_store(&d, &output, z_quantum, !dem.quiet)
+                .context("cannot build the store")?;
+            let samples = d.width as f64 * d.height as f64;
+            tracing::info!(
+                "wrote {} ({} bytes): {}x{} samples, tree built in {:.2} s ({:.1} M samples/s)",
+                output.display(),
+                rep.bytes,
+                d.width,
+                d.height,
+                rep.tree_s,
+                samples / rep.tree_s.max(1e-9) / 1e6
+            );
+        }
+        Command::Info { store } => {
+            let s = crate::store::Store::open(&store).context("cannot open the store")?;
+            let g = s.geometry();
+            let info = serde_json::json!({
+                "file": store.display().to_string(),
+                "bytes": s.file_len(),
+                "width": g.shape.width(),
+                "height": g.shape.height(),
+                "depth": g.shape.depth(),
+                "nodes": g.shape.node_count(),
+                "spacing_m": [g.frame.dx, g.frame.dy],
+                "z_quantum_m": g.z_quantum,
+                "meta": s.meta(),
+            });
+            println!("{}", serde_json::to_string_pretty(&info)?);
+        }
+        Command::Bench {
+            which:
+                BenchCommand::Lod {
+                    dem,
+                    path,
+                    tau,
+                    px_every,
+                    json,
+                    dem_args,
+                },
+        } => {
+            let d = dem_args.load(&dem)?;
+            let opts = LodBenchOptions {
+                path,
+                params: LodParams {
+                    tau,
+                    ..LodParams::default()
+                },
+                px_every,
+                progress: !dem_args.quiet,
+                ..LodBenchOptions::default()
+            };
+            let report = lod::run(&d, &opts)?;
+            let text = serde_json::to_string_pretty(&report)?;
+            if json {
+                println!("{}", serde_json::to_string(&report)?);
+            } else {
+                println!("{text}");
+            }
+        }
+    }
+    Ok(())
+}
