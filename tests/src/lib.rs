@@ -139,14 +139,10 @@ impl ChildServer {
         }
     }
 
-    /// Sends `signal` (e.g. "TERM", "KILL") to the process.
-    pub fn signal(&self, signal: &str) {
-        let status = std::process::Command::new("kill")
-            .arg(format!("-{signal}"))
-            .arg(self.child.id().to_string())
-            .status()
-            .expect("kill");
-        assert!(status.success());
+    /// Sends `signal` (e.g. `SIGTERM`, `SIGKILL`) to the process.
+    pub fn signal(&self, signal: nix::sys::signal::Signal) {
+        let pid = nix::unistd::Pid::from_raw(self.child.id() as i32);
+        nix::sys::signal::kill(pid, signal).expect("signal the server");
     }
 
     /// Waits for the process to exit, up to `limit`; returns how long it took, or `None`.

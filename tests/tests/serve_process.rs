@@ -1,6 +1,7 @@
 //! End to end with the server as a real process (issue 3): killed and restarted under connected
 //! clients, which resume with nothing lost; and SIGTERM, which drains and exits in bounded time.
 
+use nix::sys::signal::Signal;
 use relief_client::session::{Session, SessionConfig};
 use relief_tests::{ChildServer, free_addr, path};
 use std::collections::BTreeSet;
@@ -29,7 +30,7 @@ async fn clients_resume_across_a_server_restart_with_nothing_lost() {
         sessions.push(s);
     }
     // A crash: no drain, no goodbye.
-    server.signal("KILL");
+    server.signal(Signal::SIGKILL);
     assert!(server.wait(Duration::from_secs(5)).is_some());
     drop(server);
     let restart = tokio::spawn(async move {
@@ -77,7 +78,7 @@ async fn sigterm_drains_and_exits_in_bounded_time() {
         fly_span(&mut s, &path(i, 5)).await;
         sessions.push(s);
     }
-    server.signal("TERM");
+    server.signal(Signal::SIGTERM);
     let took = server
         .wait(Duration::from_secs(10))
         .expect("the server did not exit");
