@@ -110,6 +110,16 @@ pub struct ChildServer {
 impl ChildServer {
     /// Starts `relief-server serve` on `addr` with extra arguments and waits for `/readyz`.
     pub async fn start(bin: &Path, addr: SocketAddr, extra: &[&str]) -> ChildServer {
+        Self::start_env(bin, addr, extra, &[]).await
+    }
+
+    /// As [`ChildServer::start`], with extra environment variables.
+    pub async fn start_env(
+        bin: &Path,
+        addr: SocketAddr,
+        extra: &[&str],
+        envs: &[(&str, &str)],
+    ) -> ChildServer {
         let child = std::process::Command::new(bin)
             .arg("serve")
             .arg("--store")
@@ -118,6 +128,7 @@ impl ChildServer {
             .arg(addr.to_string())
             .args(extra)
             .env("RELIEF_LOG", "warn")
+            .envs(envs.iter().copied())
             .spawn()
             .expect("spawn server");
         let s = ChildServer { child, addr };

@@ -90,3 +90,45 @@ async fn sigterm_drains_and_exits_in_bounded_time() {
         assert!(s.counters().reconnects >= 1);
     }
 }
+
+/// How many sessions from this address the server at `url` admits, trying up to `n`.
+async fn admitted(url: &str, n: usize) -> usize {
+    use futures_util::{SinkExt, StreamExt};
+    use tokio_tungstenite::tungstenite::Message;
+    let mut held = Vec::new();
+    for _ in 0..n {
+        let (mut ws, _) = tokio_tungstenite::connect_async(url).await.unwrap();
+        ws.send(Message::Binary(relief_tests::hello().into()))
+            .await
+            .unwrap();
+        match ws.next().await {
+            Some(Ok(Message::Binary(_))) => held.push(ws),
+            _ => break,
+        }
+    }
+    held.len()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn flags_beat_environment_variables_which_beat_the_config_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("relief.toml");
+    std::fs::write(&file, "max_sessions_per_ip = 3\nidle_timeout_s = 30\n").unwrap();
+    let file = file.to_str().unwrap();
+    let addr = free_addr();
+    let url = format!("ws://{addr}/v1/stream");
+    {
+        let _s = ChildServer::start(Path::new(BIN), addr, &["--config", file]).await;
+        assert_eq!(admitted(&url, 5).await, 3, "the file sets the limit");
+    }
+    let env = [("RELIEF_MAX_SESSIONS_PER_IP", "1")];
+    {
+        let _s = ChildServer::start_env(Path::new(BIN), addr, &["--config", file], &env).await;
+        assert_eq!(admitted(&url, 5).await, 1, "the variable beats the file");
+    }
+    {
+        let flags = ["--config", file, "--max-sessions-per-ip", "2"];
+        let _s = ChildServer::start_env(Path::new(BIN), addr, &flags, &env).await;
+        assert_eq!(admitted(&url, 5).await, 2, "the flag beats the variable");
+    }
+}
