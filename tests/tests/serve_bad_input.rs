@@ -290,3 +290,20 @@ async fn shutdown_drains_sessions_within_the_timeout() {
         assert_eq!(r.await.unwrap(), (true, CloseReason::Draining.code()));
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_cut_past_the_node_limit_ends_the_session_with_a_reason() {
+    let limits = Limits {
+        max_cut_nodes: 100,
+        ..Limits::default()
+    };
+    let server = TestServer::start(limits).await;
+    let cam = path(0, 1)[0];
+    let pose = bin(&ClientMsg::Pose {
+        seq: 1,
+        camera: WireCamera::from(cam),
+    });
+    let r = send_and_close(&server.url(), vec![Message::Binary(hello().into()), pose]).await;
+    assert_reason(r, CloseReason::BadParams, "limit of 100 interior nodes");
+    server.stop().await;
+}

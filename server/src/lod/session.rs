@@ -75,6 +75,10 @@ pub struct VertexSession {
     odometers: Vec<f64>,
     /// The previous update's eye and view basis, to measure the camera's motion.
     previous: Option<(Vec3, [Vec3; 3])>,
+    /// Splits stop once the cut holds this many interior nodes: a guard on server memory
+    /// against a client asking for more detail than the server will hold (see
+    /// [`VertexSession::set_max_interior`]).
+    max_interior: usize,
 }
 
 fn width(band: usize) -> f64 {
@@ -95,6 +99,7 @@ impl VertexSession {
             wheels: (0..BANDS).map(|_| Wheel::default()).collect(),
             odometers: vec![0.0; BANDS],
             previous: None,
+            max_interior: usize::MAX,
         };
         let interior: Vec<u64> = s.cut.interior_indices().collect();
         for i in interior {
@@ -113,6 +118,17 @@ impl VertexSession {
     /// The current cut's digest.
     pub fn digest(&self) -> u64 {
         self.cut.digest()
+    }
+
+    /// Caps the cut at `max` interior nodes: past it the session splits nothing more, so its
+    /// deltas stop matching the full pass; [`VertexSession::at_limit`] tells the caller.
+    pub fn set_max_interior(&mut self, max: usize) {
+        self.max_interior = max;
+    }
+
+    /// Whether the cut has reached its cap of interior nodes.
+    pub fn at_limit(&self) -> bool {
+        self.cut.interior_count() >= self.max_interior
     }
 
     /// Number of active nodes.
@@ -296,7 +312,7 @@ impl VertexSession {
             }
             stats.visited += 1;
             let (cv, cerr) = engine.box_view(view, c);
-            if view.error_of(&cv, cerr) > p.tau {
+            if view.error_of(&cv, cerr) > p.tau && !self.at_limit() {
                 let _ = self.cut.split(shape, c);
                 delta.splits.push(engine.split_payload(c));
                 // Refine as deep as this pose needs, as the full pass does.

@@ -56,7 +56,8 @@ pub struct ServeArgs {
     /// Deltas a session may have unacknowledged [default: 4].
     #[arg(long, env = "RELIEF_MAX_IN_FLIGHT")]
     pub max_in_flight: Option<u32>,
-    /// Most interior nodes in a resume or base snapshot [default: 8000000].
+    /// Most interior nodes in a session's cut or in a resume or base snapshot; a session whose
+    /// cut reaches it is closed (raise tau or shrink the viewport) [default: 8000000].
     #[arg(long, env = "RELIEF_MAX_CUT_NODES")]
     pub max_cut_nodes: Option<u32>,
     /// On SIGTERM or Ctrl-C, seconds to wait for sessions to close before exiting [default: 5].
@@ -124,7 +125,7 @@ pub struct Limits {
     pub conn_rate_per_ip: f64,
     /// Unacknowledged deltas per session.
     pub max_in_flight: u32,
-    /// Interior nodes a snapshot may name.
+    /// Interior nodes a session's cut or a snapshot may hold.
     pub max_cut_nodes: u32,
     /// Longest wait for sessions to end on shutdown.
     pub drain_timeout: Duration,

@@ -229,6 +229,7 @@ async fn open(
             params,
             lens,
             budget.is_some(),
+            max_nodes,
         ))
     })
     .await;
@@ -374,6 +375,15 @@ where
             stats.deltas.fetch_add(1, Relaxed);
             stats.active_nodes.store(lod.active_count(), Relaxed);
             stats.memory_bytes.store(lod.memory_bytes() as u64, Relaxed);
+            let max_nodes = state.limits.max_cut_nodes as usize;
+            if lod.over_limit(max_nodes) {
+                return fail(
+                    CloseReason::BadParams,
+                    format!(
+                        "the cut reached the server's limit of {max_nodes} interior nodes; raise tau or shrink the viewport"
+                    ),
+                );
+            }
             continue;
         }
         let sleep = tokio::time::sleep(wait_for_tokens.unwrap_or(Duration::from_secs(3600)));

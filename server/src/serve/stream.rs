@@ -45,18 +45,24 @@ pub struct Produced {
 }
 
 impl Stream {
-    /// A stream continuing from `cut`; `budgeted` picks the budgeted engine.
+    /// A stream continuing from `cut`; `budgeted` picks the budgeted engine. The coherent
+    /// engine stops splitting at `max_interior` interior nodes; the budgeted one grows by at
+    /// most one delta's allowance per update. Either way [`Stream::over_limit`] tells the
+    /// session to end.
     pub fn new(
         engine: &VertexEngine<'_>,
         cut: &Cut,
         params: LodParams,
         lens: Lens,
         budgeted: bool,
+        max_interior: usize,
     ) -> Stream {
         let lod = if budgeted {
             Lod::Budgeted(cut.clone())
         } else {
-            Lod::Coherent(VertexSession::from_cut(engine, cut))
+            let mut s = VertexSession::from_cut(engine, cut);
+            s.set_max_interior(max_interior);
+            Lod::Coherent(s)
         };
         Stream {
             lod,
@@ -118,6 +124,14 @@ impl Stream {
         match &self.lod {
             Lod::Coherent(s) => s.digest(),
             Lod::Budgeted(c) => c.digest(),
+        }
+    }
+
+    /// Whether the cut holds at least `max_interior` interior nodes.
+    pub fn over_limit(&self, max_interior: usize) -> bool {
+        match &self.lod {
+            Lod::Coherent(s) => s.at_limit(),
+            Lod::Budgeted(c) => c.interior_count() >= max_interior,
         }
     }
 
