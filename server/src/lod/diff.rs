@@ -53,65 +53,15 @@ pub(super) mod tests {
     //! Also the synthetic store, lens and cameras that the other LOD modules' tests share.
     use super::*;
     use crate::lod::vertex::{LodParams, UpdateStats};
-    use crate::store::{Store, StoreInput, StoreMeta, write_store};
-    use glam::Vec3;
+    use crate::store::Store;
     use proptest::prelude::*;
     use relief_proto::mirror::Mirror;
     use relief_proto::msg::WireDelta;
     use relief_proto::path::{PathKind, camera_path};
     use relief_proto::tree::NodeId;
-    use relief_proto::view::{Camera, Lens, ViewState};
+    use relief_proto::view::ViewState;
 
-    /// A store over a rough random terrain of `w` x `h` samples, 10 m apart.
-    pub(crate) fn store(dir: &std::path::Path, w: u32, h: u32, seed: u64) -> Store {
-        let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
-        let mut rnd = move || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 33) as f32 / (1u64 << 31) as f32
-        };
-        let heights: Vec<f32> = (0..w * h)
-            .map(|i| {
-                let (x, y) = ((i % w) as f32, (i / w) as f32);
-                (x * 0.3).sin() * 30.0 + (y * 0.17).cos() * 50.0 + rnd() * 8.0
-            })
-            .collect();
-        let voids = vec![false; heights.len()];
-        let path = dir.join(format!("{w}x{h}-{seed}.relief"));
-        let input = StoreInput {
-            width: w,
-            height: h,
-            spacing_x: 10.0,
-            spacing_y: 10.0,
-            z_quantum: 0.1,
-            heights: &heights,
-            voids: &voids,
-            meta: StoreMeta::default(),
-        };
-        write_store(&path, &input, |_| {}).unwrap();
-        Store::open(&path).unwrap()
-    }
-
-    pub(crate) fn lens() -> Lens {
-        Lens {
-            width: 640,
-            height: 480,
-            ..Lens::STANDARD
-        }
-    }
-
-    pub(crate) fn camera(w: u32, h: u32, t: (f32, f32, f32, f32, f32)) -> Camera {
-        Camera {
-            eye: Vec3::new(
-                t.0 * w as f32 * 10.0,
-                t.1 * h as f32 * 10.0,
-                20.0 + t.2 * 300.0,
-            ),
-            yaw: t.3 * std::f32::consts::TAU,
-            pitch: -0.1 - t.4 * 1.2,
-        }
-    }
+    pub(crate) use crate::lod::tests::{camera, lens, store};
 
     fn sorted_active(cut: &Cut, s: &Store) -> Vec<NodeId> {
         let mut v = cut.active_nodes(&s.geometry().shape);

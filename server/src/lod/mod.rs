@@ -14,4 +14,4 @@ pub mod session;
 pub mod vertex;
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

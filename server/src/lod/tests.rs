@@ -13,8 +13,8 @@ use relief_proto::msg::WireDelta;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{Camera, Lens, ViewState};
 
-/// A store over a rough random terrain of `w` x `h` samples, 10 m apart.
-fn store(dir: &std::path::Path, w: u32, h: u32, seed: u64) -> Store {
+/// A store over a rough random terrain (shared with the other engine tests) of `w` x `h` samples, 10 m apart.
+pub(crate) fn store(dir: &std::path::Path, w: u32, h: u32, seed: u64) -> Store {
     let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
     let mut rnd = move || {
         s = s
@@ -44,7 +44,7 @@ fn store(dir: &std::path::Path, w: u32, h: u32, seed: u64) -> Store {
     Store::open(&path).unwrap()
 }
 
-fn camera(w: u32, h: u32, t: (f32, f32, f32, f32, f32)) -> Camera {
+pub(crate) fn camera(w: u32, h: u32, t: (f32, f32, f32, f32, f32)) -> Camera {
     Camera {
         eye: Vec3::new(
             t.0 * w as f32 * 10.0,
@@ -56,7 +56,7 @@ fn camera(w: u32, h: u32, t: (f32, f32, f32, f32, f32)) -> Camera {
     }
 }
 
-fn lens() -> Lens {
+pub(crate) fn lens() -> Lens {
     Lens {
         width: 640,
         height: 480,
