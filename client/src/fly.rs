@@ -3,18 +3,16 @@
 //! desyncs.
 //!
 //! The path is the one the server's in-process benchmark flies (`relief_proto::path`), placed
-//! over the served terrain with heights from `POST /v1/heights`. Poses go out at the path's
-//! 10 Hz in real time (or as fast as deltas come back with `rate = 0`). A pose's latency runs
-//! from just before it is sent to when the complete delta answering it has been applied to the
-//! mirror and the mesh. Poses that the server coalesced into a newer one have no delta of their
-//! own and no latency sample.
+//! over the served terrain with heights from `POST /v1/heights`; poses go out at the path's
+//! 10 Hz in real time (or as fast as deltas come back with `rate = 0`). How latency is measured:
+//! [`crate::flight`].
 
+use crate::flight::{self, quantile};
 use crate::http;
 use crate::session::{ClientError, Session, SessionConfig};
-use relief_proto::path::{PATH_HZ, PathKind, camera_path};
+use relief_proto::path::{PATH_HZ, PathKind};
 use serde::Serialize;
-use std::collections::HashMap;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 /// What to fly.
 #[derive(Clone, Debug)]
@@ -64,15 +62,6 @@ pub struct FlyReport {
     pub active_final: u64,
 }
 
-/// The `q`-quantile of sorted values.
-fn quantile(sorted: &[f64], q: f64) -> f64 {
-    if sorted.is_empty() {
-        return 0.0;
-    }
-    let i = ((sorted.len() as f64 - 1.0) * q).round() as usize;
-    sorted[i.min(sorted.len() - 1)]
-}
-
 /// A flight that could not be flown.
 #[derive(Debug, thiserror::Error)]
 pub enum FlyError {
@@ -87,134 +76,32 @@ pub enum FlyError {
     Answer(String),
 }
 
-/// Ground heights for the path, from the server.
-async fn ground_heights(
-    base: &str,
-    points: &[[f32; 2]],
-) -> Result<HashMap<(u32, u32), f32>, FlyError> {
-    let body = serde_json::json!({ "points": points });
-    let v = http::post_json(&format!("{base}/v1/heights"), &body).await?;
-    let hs = v["heights"]
-        .as_array()
-        .ok_or_else(|| FlyError::Answer("no heights".into()))?;
-    Ok(points
-        .iter()
-        .zip(hs)
-        .map(|(p, h)| {
-            (
-                (p[0].to_bits(), p[1].to_bits()),
-                h.as_f64().unwrap_or(0.0) as f32,
-            )
-        })
-        .collect())
-}
-
 /// Flies the path and reports.
 pub async fn fly(opts: &FlyOptions) -> Result<FlyReport, FlyError> {
-    let base = http::base_of(&opts.session.url)?;
     let mut session = Session::connect(opts.session.clone()).await?;
-    let info = session.terrain().clone();
-    let extent = (
-        info.width.saturating_sub(1) as f32 * info.spacing_x,
-        info.height.saturating_sub(1) as f32 * info.spacing_y,
-    );
-    // The path asks for ground heights at points it chooses: collect them, fetch, then fly.
-    let wanted = std::cell::RefCell::new(Vec::new());
-    let _ = camera_path(opts.path, extent.0, extent.1, |x, y| {
-        wanted.borrow_mut().push([x, y]);
-        0.0
-    });
-    let heights = ground_heights(&base, &wanted.into_inner()).await?;
-    let cams = camera_path(opts.path, extent.0, extent.1, |x, y| {
-        heights
-            .get(&(x.to_bits(), y.to_bits()))
-            .copied()
-            .unwrap_or(0.0)
-    });
-
+    let cams = flight::server_path(&opts.session.url, session.terrain(), opts.path).await?;
     let t0 = Instant::now();
-    let period = if opts.rate_hz > 0.0 {
-        Some(Duration::from_secs_f64(1.0 / opts.rate_hz))
-    } else {
-        None
-    };
-    let mut sent_at: HashMap<u64, Instant> = HashMap::new();
-    let mut latencies = Vec::new();
-    let mut first_latency = None;
-    let mut per_second: Vec<u64> = Vec::new();
-    let mut first_delta_bytes = 0;
-    let mut record = |a: &crate::session::Applied, sent_at: &mut HashMap<u64, Instant>| {
-        let now = Instant::now();
-        let sec = now.duration_since(t0).as_secs() as usize;
-        if per_second.len() <= sec {
-            per_second.resize(sec + 1, 0);
-        }
-        per_second[sec] += a.bytes as u64;
-        if first_delta_bytes == 0 {
-            first_delta_bytes = a.bytes as u64;
-        }
-        if a.complete
-            && let Some(s) = sent_at.remove(&a.pose_seq)
-        {
-            let ms = now.duration_since(s).as_secs_f64() * 1e3;
-            if first_latency.is_none() {
-                first_latency = Some(ms);
-            } else {
-                latencies.push(ms);
-            }
-            sent_at.retain(|&k, _| k > a.pose_seq);
-        }
-    };
-    for (i, cam) in cams.iter().enumerate() {
-        if let Some(p) = period {
-            let due = t0 + p.mul_f64(i as f64);
-            // Apply whatever arrives until the pose is due.
-            while !sent_at.is_empty() {
-                let now = Instant::now();
-                if now >= due {
-                    break;
-                }
-                match tokio::time::timeout(due - now, session.next_delta()).await {
-                    Ok(a) => record(&a?, &mut sent_at),
-                    Err(_) => break,
-                }
-            }
-            tokio::time::sleep_until(due.into()).await;
-        }
-        let now = Instant::now();
-        let seq = session.send_pose(*cam).await?;
-        sent_at.insert(seq, now);
-        if period.is_none() {
-            for a in session.wait_for_pose(seq).await? {
-                record(&a, &mut sent_at);
-            }
-        }
-    }
-    // The last pose's answer.
-    if let Some(&last) = sent_at.keys().max() {
-        for a in session.wait_for_pose(last).await? {
-            record(&a, &mut sent_at);
-        }
-    }
+    let log = flight::fly_poses(&mut session, &cams, opts.rate_hz, t0, None).await?;
     let duration_s = t0.elapsed().as_secs_f64();
-    let mut all = latencies.clone();
-    all.extend(first_latency);
+    let mut all = log.latencies_ms.clone();
+    all.extend(log.first_latency_ms);
     all.sort_by(f64::total_cmp);
-    latencies.sort_by(f64::total_cmp);
+    let mut later = log.latencies_ms.clone();
+    later.sort_by(f64::total_cmp);
     let c = session.counters();
     let report = FlyReport {
-        poses: cams.len(),
+        poses: log.poses,
         deltas: c.deltas,
         duration_s,
         bytes: c.bytes_in,
         bytes_per_s_mean: c.bytes_in as f64 / duration_s.max(1e-9),
-        bytes_per_s_max: per_second.iter().copied().max().unwrap_or(0) as f64,
-        first_delta_bytes,
+        bytes_per_s_max: log.bytes_per_second.iter().copied().max().unwrap_or(0) as f64,
+        first_delta_bytes: log.first_delta_bytes,
         latency_ms_p50: quantile(&all, 0.5),
         latency_ms_p99: quantile(&all, 0.99),
         latency_ms_max: all.last().copied().unwrap_or(0.0),
         latency_samples: all.len(),
-        latency_ms_p99_after_first: quantile(&latencies, 0.99),
+        latency_ms_p99_after_first: quantile(&later, 0.99),
         desyncs: c.desyncs,
         reconnects: c.reconnects,
         triangles_final: session.mesh().triangle_count(),

@@ -134,6 +134,8 @@ pub struct Session {
     next_pose_seq: u64,
     /// The server's window of unacknowledged deltas.
     max_in_flight: u32,
+    /// The server's idle timeout: the session pings after half of it without traffic.
+    idle_timeout: Duration,
     /// Counters.
     counters: Counters,
 }
@@ -199,6 +201,11 @@ async fn handshake(config: &SessionConfig, resume: Option<Resume>) -> Result<Ope
     }
 }
 
+/// The idle timeout a welcome announces (at least 100 ms, so pings never flood).
+fn idle_of(w: &relief_proto::msg::Welcome) -> Duration {
+    Duration::from_millis(u64::from(w.idle_timeout_ms).max(100))
+}
+
 /// A close worth retrying gives its text; any other is the session's end.
 fn closed(code: u16, text: String) -> Result<String, ClientError> {
     match CloseReason::from_code(code) {
@@ -227,6 +234,7 @@ impl Session {
             last_pose: None,
             next_pose_seq: 1,
             max_in_flight: welcome.max_in_flight,
+            idle_timeout: idle_of(&welcome),
             counters: Counters::default(),
         })
     }
@@ -270,7 +278,14 @@ impl Session {
             terrain_id: self.info.id,
             snapshot: Snapshot::of(&self.geom.shape, self.mirror.cut()),
         });
-        let (ws, w) = Self::establish(&self.config, resume).await?;
+        let (ws, w) = match Self::establish(&self.config, resume).await {
+            // The server refused the snapshot (e.g. it now holds another terrain): start afresh.
+            Err(ClientError::Closed { code, text }) if code == CloseReason::BadSnapshot.code() => {
+                tracing::info!("resume refused ({text}); starting from the root");
+                Self::establish(&self.config, None).await?
+            }
+            r => r?,
+        };
         let same_terrain = w.terrain == self.info;
         if w.resumed && same_terrain && w.digest == self.mirror.cut().digest() {
             self.counters.resumes += 1;
@@ -285,6 +300,7 @@ impl Session {
             self.mesh = FanMesh::new(&self.geom.shape, self.mirror.cut());
         }
         self.max_in_flight = w.max_in_flight;
+        self.idle_timeout = idle_of(&w);
         self.ws = Some(ws);
         if let Some((_, cam)) = self.last_pose {
             self.send_pose(cam).await?;
@@ -325,7 +341,17 @@ impl Session {
                 self.reconnect(false).await?;
                 continue;
             };
-            let msg = match ws.next().await {
+            // Keep a session at rest alive: ping after half the server's idle timeout.
+            let next = match tokio::time::timeout(self.idle_timeout / 2, ws.next()).await {
+                Ok(n) => n,
+                Err(_) => {
+                    if ws.send(Message::Ping(Vec::new().into())).await.is_err() {
+                        self.reconnect(false).await?;
+                    }
+                    continue;
+                }
+            };
+            let msg = match next {
                 Some(Ok(Message::Binary(b))) => b,
                 Some(Ok(Message::Close(frame))) => {
                     let (code, text) = frame

@@ -106,6 +106,7 @@ impl CloseReason {
             self,
             CloseReason::Draining
                 | CloseReason::ServerFull
+                | CloseReason::TooManyFromAddress
                 | CloseReason::Idle
                 | CloseReason::SlowReader
                 | CloseReason::Internal

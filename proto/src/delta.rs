@@ -4,7 +4,7 @@
 //! A split carries what the client needs to create the four children and to geomorph them: the
 //! three integer Haar details (children heights come back exactly from the parent's, see
 //! [`crate::haar`]) and the node's one-byte static-error code (its screen error drives the
-//! children's geomorph and defines its bounding box, see [`crate::node`]).
+//! children's geomorph and defines its bounding box, see [`crate::terrain`]).
 //!
 //! **Body layout** (a bit stream, most significant bit first; "EG(k)" is an order-k Exp-Golomb
 //! code, signed values zigzag-mapped first):

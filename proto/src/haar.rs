@@ -73,7 +73,24 @@ pub fn inverse(parent: i32, details: [i32; 3]) -> Quad {
 /// Static errors are sent as one byte: code 0 is 0 m, code `k > 0` is
 /// `ERROR_BASE_M * 2^((k - 1) / 11)` metres, a 6.5 % step from 1 cm up to about 89 km.
 pub const ERROR_BASE_M: f32 = 0.01;
-const STEPS_PER_OCTAVE: f32 = 11.0;
+const STEPS_PER_OCTAVE: usize = 11;
+
+/// `2^(j / 11)` for `j` in `0..11`, as exact `f32` bit patterns (the `f64` power rounded to
+/// `f32`). Constants rather than `exp2` calls, whose last bits vary with the platform's maths
+/// library: both ends must agree on every code's value to the bit.
+const OCTAVE_STEPS: [u32; 11] = [
+    0x3f80_0000,
+    0x3f88_5344,
+    0x3f91_3127,
+    0x3f9a_a2ad,
+    0x3fa4_b16f,
+    0x3faf_67a9,
+    0x3fba_d03e,
+    0x3fc6_f6c9,
+    0x3fd3_e7a4,
+    0x3fe1_aff7,
+    0x3ff0_5dc7,
+];
 
 fn table() -> &'static [f32; 256] {
     static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
@@ -82,7 +99,9 @@ fn table() -> &'static [f32; 256] {
             if k == 0 {
                 0.0
             } else {
-                ERROR_BASE_M * ((k - 1) as f32 / STEPS_PER_OCTAVE).exp2()
+                // One rounded product, then an exact scaling by a power of two.
+                let (octave, step) = ((k - 1) / STEPS_PER_OCTAVE, (k - 1) % STEPS_PER_OCTAVE);
+                ERROR_BASE_M * f32::from_bits(OCTAVE_STEPS[step]) * (1u32 << octave) as f32
             }
         })
     })
@@ -104,6 +123,22 @@ pub fn error_code(metres: f32) -> u8 {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn error_table_is_exact_octaves_of_its_formula() {
+        for k in 1..=255usize {
+            let want = 0.01f64 * 2f64.powf((k - 1) as f64 / 11.0);
+            let got = error_value(k as u8) as f64;
+            assert!((got / want - 1.0).abs() < 1e-6, "code {k}: {got} vs {want}");
+            if k + 11 <= 255 {
+                assert_eq!(error_value((k + 11) as u8), 2.0 * error_value(k as u8));
+            }
+        }
+        // Pinned bits (docs/protocol.md, appendix A): a platform's maths library must not matter.
+        assert_eq!(error_value(5).to_bits(), 0x3c52_cea2);
+        assert_eq!(error_value(255).to_bits(), 0x47ae_7f0f);
+    }
+
     use super::*;
     use proptest::prelude::*;
 

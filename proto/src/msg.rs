@@ -169,6 +169,9 @@ pub struct Welcome {
     pub max_in_flight: u32,
     /// The largest message the server accepts, in bytes.
     pub max_message_bytes: u32,
+    /// The server closes a session that sends nothing for this long, milliseconds: a client
+    /// at rest should send a ping (or repeat its last acknowledgement) more often.
+    pub idle_timeout_ms: u32,
 }
 
 /// A delta as it travels: the header in the clear, merges and splits in the compact body
@@ -346,5 +349,53 @@ mod tests {
         };
         assert_eq!(Camera::from(WireCamera::from(c)), c);
         assert_eq!(Lens::from(WireLens::from(Lens::STANDARD)), Lens::STANDARD);
+    }
+
+    #[test]
+    fn the_welcome_example_of_the_protocol_doc_is_what_the_code_sends() {
+        let w = ServerMsg::Welcome(Welcome {
+            version: 1,
+            session_id: 42,
+            terrain: TerrainInfo {
+                id: 0x0123_4567_89AB_CDEF,
+                width: 5,
+                height: 3,
+                spacing_x: 10.0,
+                spacing_y: 10.0,
+                z_quantum: 0.5,
+                root_z: 195,
+                height_range: [93.0, 104.5],
+            },
+            resumed: false,
+            digest: 0xE220_A839_7B1D_CDAF,
+            max_in_flight: 4,
+            max_message_bytes: 1 << 20,
+            idle_timeout_ms: 60_000,
+        });
+        let doc = include_str!("../../docs/protocol.md");
+        let start = doc.find("**Welcome** (session 42").expect("the example");
+        let block = &doc[start..];
+        let block = &block[block.find("```").expect("code")..];
+        let block = &block[3..block[3..].find("```").expect("end") + 3];
+        // The example's hex bytes: the leading columns of each line, before the comment.
+        let hex: Vec<u8> = block
+            .lines()
+            .flat_map(|l| {
+                l.split("  ")
+                    .take_while(|part| {
+                        part.trim()
+                            .split(' ')
+                            .all(|b| b.len() == 2 && u8::from_str_radix(b, 16).is_ok())
+                    })
+                    .flat_map(|part| {
+                        part.trim()
+                            .split(' ')
+                            .filter_map(|b| u8::from_str_radix(b, 16).ok())
+                            .collect::<Vec<_>>()
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        assert_eq!(encode(&w), hex);
     }
 }

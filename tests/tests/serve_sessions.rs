@@ -165,3 +165,32 @@ async fn a_client_that_stops_reading_holds_a_bounded_window() {
     drop(ws);
     server.stop().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_at_rest_keeps_its_session_alive() {
+    let limits = Limits {
+        idle_timeout: std::time::Duration::from_millis(400),
+        ..Limits::default()
+    };
+    let server = TestServer::start(limits).await;
+    let cams = path(5, 2);
+    let mut s = Session::connect(SessionConfig::new(&server.url()))
+        .await
+        .unwrap();
+    let seq = s.send_pose(cams[0]).await.unwrap();
+    s.wait_for_pose(seq).await.unwrap();
+    // Four idle timeouts without a pose: the session pings and is not closed.
+    let waited = tokio::time::timeout(std::time::Duration::from_millis(1600), s.next_delta()).await;
+    assert!(waited.is_err(), "a delta arrived at rest: {waited:?}");
+    let seq = s.send_pose(cams[1]).await.unwrap();
+    s.wait_for_pose(seq).await.unwrap();
+    assert_eq!(s.counters().reconnects, 0);
+    assert!(
+        server
+            .state
+            .metrics
+            .render()
+            .contains("relief_errors_total{kind=\"idle\"} 0")
+    );
+    server.stop().await;
+}

@@ -152,7 +152,7 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Bytes) -> Result<Resp
 }
 
 /// Most points in one `POST /v1/heights` request.
-pub const MAX_HEIGHT_POINTS: usize = 100_000;
+pub const MAX_HEIGHT_POINTS: usize = 50_000;
 
 /// The body of `POST /v1/heights`.
 #[derive(Debug, serde::Deserialize)]

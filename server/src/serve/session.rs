@@ -271,6 +271,7 @@ where
         digest: lod.digest(),
         max_in_flight: state.limits.max_in_flight,
         max_message_bytes: state.limits.max_message_bytes,
+        idle_timeout_ms: state.limits.idle_timeout.as_millis().min(u32::MAX as u128) as u32,
     });
     send(socket, state, stats, &welcome).await?;
     state.metrics.sessions_active.fetch_add(1, Relaxed);

@@ -68,8 +68,8 @@ pub struct SessionStats {
 /// One session as `GET /v1/sessions` lists it.
 #[derive(Debug, Serialize)]
 pub struct SessionReport {
-    /// Session id, as in the welcome.
-    pub id: u64,
+    /// Session id, as in the welcome, in hex (a JSON number would lose bits in JavaScript).
+    pub id: String,
     /// Client address.
     pub peer: String,
     /// Seconds since the session began.
@@ -165,7 +165,7 @@ impl AppState {
             .map(|(&id, s)| {
                 let deltas = s.deltas.load(Relaxed);
                 SessionReport {
-                    id,
+                    id: format!("{id:016x}"),
                     peer: s.peer.to_string(),
                     age_s: s.started.elapsed().as_secs_f64(),
                     deltas,
@@ -176,7 +176,7 @@ impl AppState {
                 }
             })
             .collect();
-        v.sort_by_key(|r| r.id);
+        v.sort_by(|a, b| a.id.cmp(&b.id));
         v
     }
 }

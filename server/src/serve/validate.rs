@@ -56,8 +56,8 @@ pub fn camera(c: &WireCamera, t: &TerrainInfo) -> Result<Camera, String> {
             c.eye, c.yaw, c.pitch
         ));
     }
-    let w = t.width as f32 * t.spacing_x;
-    let h = t.height as f32 * t.spacing_y;
+    let w = t.width.saturating_sub(1) as f32 * t.spacing_x;
+    let h = t.height.saturating_sub(1) as f32 * t.spacing_y;
     let [x, y, z] = c.eye;
     let r = CAMERA_REACH_M;
     if x < -r
