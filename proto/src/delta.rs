@@ -211,6 +211,11 @@ impl Delta {
                 details,
             });
         }
+        // Only the last byte's zero padding may follow: anything else is not this encoder's.
+        let rest = r.remaining();
+        if rest >= 8 || r.get(rest as u32) != Some(0) {
+            return Err(BodyError::Malformed);
+        }
         Ok(delta)
     }
 }
@@ -350,5 +355,33 @@ mod tests {
             Delta::unpack_body(&shape, 0.25, 0, 0, &body),
             Err(BodyError::Malformed)
         );
+    }
+
+    #[test]
+    fn padding_must_be_zero_and_nothing_may_follow() {
+        let shape = TreeShape::new(65, 65).unwrap();
+        let d = Delta {
+            seq: 1,
+            digest: 2,
+            merges: vec![],
+            splits: vec![Split {
+                node: NodeId::ROOT,
+                err_code: predicted_code([3, -4, 5], 0.1),
+                details: [3, -4, 5],
+            }],
+        };
+        let body = d.pack_body(&shape, 0.1);
+        assert_eq!(Delta::unpack_body(&shape, 0.1, 1, 2, &body).unwrap(), d);
+        let mut longer = body.clone();
+        longer.push(0);
+        assert_eq!(
+            Delta::unpack_body(&shape, 0.1, 1, 2, &longer),
+            Err(BodyError::Malformed)
+        );
+        let mut dirty = body.clone();
+        let last = dirty.len() - 1;
+        dirty[last] |= 1;
+        // Either the low bit was padding (refused) or data (the body changes or breaks).
+        assert_ne!(Delta::unpack_body(&shape, 0.1, 1, 2, &dirty), Ok(d));
     }
 }
