@@ -9,7 +9,7 @@
 use crate::http::{self, HttpError};
 use crate::session::{Applied, ClientError, Session};
 use relief_proto::msg::TerrainInfo;
-use relief_proto::path::{PathKind, camera_path};
+use relief_proto::path::{PathKind, camera_path, random_path};
 use relief_proto::view::Camera;
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
@@ -116,21 +116,43 @@ pub async fn fly_poses(
     Ok(log)
 }
 
-/// The camera path `kind` over the served terrain, phase-shifted by `phase` poses, with
-/// ground heights from the server's `POST /v1/heights`.
-pub async fn server_path(
-    stream_url: &str,
-    info: &TerrainInfo,
-    kind: PathKind,
-) -> Result<Vec<Camera>, HttpError> {
-    let base = http::base_of(stream_url)?;
-    let extent = (
+/// Which path a flight takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PathSpec {
+    /// The standard or stress loop.
+    Kind(PathKind),
+    /// A seeded random loop ([`relief_proto::path::random_path`]).
+    Random(u64),
+}
+
+impl PathSpec {
+    fn poses(self, extent: (f32, f32), ground: impl Fn(f32, f32) -> f32) -> Vec<Camera> {
+        match self {
+            PathSpec::Kind(k) => camera_path(k, extent.0, extent.1, ground),
+            PathSpec::Random(seed) => random_path(seed, extent.0, extent.1, ground),
+        }
+    }
+}
+
+/// The extent of a terrain in metres (the grid's, from the first sample to the last).
+pub fn extent(info: &TerrainInfo) -> (f32, f32) {
+    (
         info.width.saturating_sub(1) as f32 * info.spacing_x,
         info.height.saturating_sub(1) as f32 * info.spacing_y,
-    );
+    )
+}
+
+/// The path `spec` over a terrain of `extent` metres, with ground heights from the server's
+/// `POST /v1/heights`.
+pub async fn server_path(
+    stream_url: &str,
+    extent: (f32, f32),
+    spec: PathSpec,
+) -> Result<Vec<Camera>, HttpError> {
+    let base = http::base_of(stream_url)?;
     // The path asks for ground heights at points it chooses: collect them, fetch, then build.
     let wanted = std::cell::RefCell::new(Vec::new());
-    let _ = camera_path(kind, extent.0, extent.1, |x, y| {
+    let _ = spec.poses(extent, |x, y| {
         wanted.borrow_mut().push([x, y]);
         0.0
     });
@@ -155,7 +177,7 @@ pub async fn server_path(
             )
         })
         .collect();
-    Ok(camera_path(kind, extent.0, extent.1, |x, y| {
+    Ok(spec.poses(extent, |x, y| {
         heights
             .get(&(x.to_bits(), y.to_bits()))
             .copied()

@@ -79,7 +79,9 @@ pub enum FlyError {
 /// Flies the path and reports.
 pub async fn fly(opts: &FlyOptions) -> Result<FlyReport, FlyError> {
     let mut session = Session::connect(opts.session.clone()).await?;
-    let cams = flight::server_path(&opts.session.url, session.terrain(), opts.path).await?;
+    let extent = flight::extent(session.terrain());
+    let spec = flight::PathSpec::Kind(opts.path);
+    let cams = flight::server_path(&opts.session.url, extent, spec).await?;
     let t0 = Instant::now();
     let log = flight::fly_poses(&mut session, &cams, opts.rate_hz, t0, None).await?;
     let duration_s = t0.elapsed().as_secs_f64();

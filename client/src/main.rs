@@ -1,10 +1,14 @@
 //! `relief-client`: talk to a Relief server from the command line.
 //! Thin: parse the arguments, set up tracing, call into the library.
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
 use relief_client::fly::{self, FlyOptions};
+use relief_client::load::{self, LoadOptions, LoadPath};
 use relief_client::session::SessionConfig;
 use relief_proto::path::PathKind;
+use std::path::PathBuf;
+use std::time::Duration;
 
 #[derive(Parser)]
 #[command(
@@ -43,6 +47,60 @@ enum Command {
         /// Print one JSON object instead of an indented one.
         #[arg(long)]
         json: bool,
+    },
+    /// Run many sessions at once against a server and report bandwidth, latency, errors and the
+    /// server's CPU and memory; with --sweep, run stages of growing size and find the knee.
+    Load {
+        /// The stream's URL.
+        #[arg(
+            long,
+            env = "RELIEF_SERVER",
+            default_value = "ws://127.0.0.1:8080/v1/stream"
+        )]
+        server: String,
+        /// Concurrent sessions (ignored with --sweep).
+        #[arg(long, default_value_t = 10)]
+        sessions: usize,
+        /// Seconds every session flies once all have started.
+        #[arg(long, default_value_t = 30.0)]
+        duration: f64,
+        /// Which paths: `standard` or `stress` (phase-shifted per session), or `random`
+        /// (a seeded loop per session).
+        #[arg(long, default_value = "standard")]
+        path: LoadPath,
+        /// Seed of the random paths.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Screen-space error threshold in pixels.
+        #[arg(long, default_value_t = 1.0)]
+        tau: f32,
+        /// Per-session bandwidth budget in bytes per second [default: none].
+        #[arg(long)]
+        budget: Option<u32>,
+        /// Poses per second per session; 0 sends each pose as soon as the previous is answered.
+        #[arg(long, default_value_t = fly::DEFAULT_RATE_HZ)]
+        rate: f64,
+        /// Seconds over which sessions start, evenly spread [default: 10% of the duration].
+        #[arg(long)]
+        ramp: Option<f64>,
+        /// Rebuild fans as a viewer would (costs client CPU).
+        #[arg(long)]
+        mesh: bool,
+        /// Run these session counts in turn (e.g. 10,100,500) and report the knee.
+        #[arg(long, value_delimiter = ',')]
+        sweep: Vec<usize>,
+        /// The p99 latency in milliseconds above which a sweep stage counts as broken away.
+        #[arg(long, default_value_t = 50.0)]
+        knee_ms: f64,
+        /// Write the JSON report to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+        /// Write report.json, summary.md and PNG plots into this folder.
+        #[arg(long)]
+        report: Option<PathBuf>,
+        /// Hide the progress bar.
+        #[arg(long)]
+        quiet: bool,
     },
 }
 
@@ -92,6 +150,63 @@ fn run() -> anyhow::Result<()> {
             } else {
                 println!("{}", serde_json::to_string_pretty(&report)?);
             }
+        }
+        Command::Load {
+            server,
+            sessions,
+            duration,
+            path,
+            seed,
+            tau,
+            budget,
+            rate,
+            ramp,
+            mesh,
+            sweep,
+            knee_ms,
+            json,
+            report,
+            quiet,
+        } => {
+            anyhow::ensure!(
+                duration.is_finite() && duration > 0.0 && duration < 1e6,
+                "--duration must be a positive number of seconds"
+            );
+            let ramp = ramp.unwrap_or(duration / 10.0);
+            anyhow::ensure!(
+                ramp.is_finite() && (0.0..1e6).contains(&ramp),
+                "--ramp must be 0 or more seconds"
+            );
+            let opts = LoadOptions {
+                url: server,
+                sessions,
+                duration: Duration::from_secs_f64(duration),
+                ramp: Duration::from_secs_f64(ramp),
+                path,
+                seed,
+                tau,
+                budget,
+                rate_hz: rate,
+                mesh,
+                progress: !quiet,
+            };
+            let counts = if sweep.is_empty() {
+                vec![sessions]
+            } else {
+                sweep
+            };
+            let stages = rt.block_on(load::run_sweep(&opts, &counts))?;
+            let text = load::report::json(&stages, knee_ms);
+            if let Some(path) = json {
+                std::fs::write(&path, &text)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+            }
+            if let Some(dir) = report {
+                for f in load::report::write_report(&dir, &stages, knee_ms)? {
+                    eprintln!("wrote {}", f.display());
+                }
+            }
+            println!("{}", load::report::markdown(&stages, knee_ms, &[]));
         }
     }
     Ok(())

@@ -43,6 +43,9 @@ pub struct SessionConfig {
     pub backoff_max: Duration,
     /// Give up after this long without a connection.
     pub reconnect_deadline: Duration,
+    /// Keep the fan mesh up to date (a viewer needs it; a load generator may skip it, and
+    /// [`Session::mesh`] then stays at the root's).
+    pub mesh: bool,
 }
 
 impl SessionConfig {
@@ -56,6 +59,7 @@ impl SessionConfig {
             backoff_initial: Duration::from_millis(50),
             backoff_max: Duration::from_secs(2),
             reconnect_deadline: Duration::from_secs(30),
+            mesh: true,
         }
     }
 }
@@ -104,7 +108,8 @@ pub struct Applied {
 pub struct Counters {
     /// Deltas applied.
     pub deltas: u64,
-    /// Bytes of messages received.
+    /// Bytes of server messages received (welcomes and deltas; payloads, without the
+    /// WebSocket framing), as the server's `relief_bytes_out_total` counts them.
     pub bytes_in: u64,
     /// Deltas whose digest did not match the mirror.
     pub desyncs: u64,
@@ -157,7 +162,7 @@ async fn dial(url: &str) -> Result<Ws, String> {
 /// One step of the handshake's outcome.
 enum Opened {
     /// Welcomed on this connection.
-    Welcome(Box<Ws>, relief_proto::msg::Welcome),
+    Welcome(Box<Ws>, relief_proto::msg::Welcome, usize),
     /// Closed for a reason worth retrying.
     Retry(String),
 }
@@ -181,7 +186,7 @@ async fn handshake(config: &SessionConfig, resume: Option<Resume>) -> Result<Ope
     loop {
         match ws.next().await {
             Some(Ok(Message::Binary(b))) => match decode(&b)? {
-                ServerMsg::Welcome(w) => return Ok(Opened::Welcome(Box::new(ws), w)),
+                ServerMsg::Welcome(w) => return Ok(Opened::Welcome(Box::new(ws), w, b.len())),
                 other => {
                     return Err(ClientError::Protocol(format!(
                         "expected a welcome, got {other:?}"
@@ -217,7 +222,7 @@ fn closed(code: u16, text: String) -> Result<String, ClientError> {
 impl Session {
     /// Connects and opens a session from the root (retrying within the reconnect deadline).
     pub async fn connect(config: SessionConfig) -> Result<Session, ClientError> {
-        let (ws, welcome) = Self::establish(&config, None).await?;
+        let (ws, welcome, bytes) = Self::establish(&config, None).await?;
         let info = welcome.terrain.clone();
         let geom = info
             .geometry()
@@ -235,26 +240,29 @@ impl Session {
             next_pose_seq: 1,
             max_in_flight: welcome.max_in_flight,
             idle_timeout: idle_of(&welcome),
-            counters: Counters::default(),
+            counters: Counters {
+                bytes_in: bytes as u64,
+                ..Counters::default()
+            },
         })
     }
 
     async fn establish(
         config: &SessionConfig,
         resume: Option<Resume>,
-    ) -> Result<(Ws, relief_proto::msg::Welcome), ClientError> {
+    ) -> Result<(Ws, relief_proto::msg::Welcome, usize), ClientError> {
         let started = Instant::now();
         let mut wait = config.backoff_initial;
         loop {
             let last = match handshake(config, resume.clone()).await? {
-                Opened::Welcome(ws, w) => {
+                Opened::Welcome(ws, w, bytes) => {
                     if w.version != PROTOCOL_VERSION {
                         return Err(ClientError::Protocol(format!(
                             "server speaks protocol {}, this client {PROTOCOL_VERSION}",
                             w.version
                         )));
                     }
-                    return Ok((*ws, w));
+                    return Ok((*ws, w, bytes));
                 }
                 Opened::Retry(e) => e,
             };
@@ -278,7 +286,7 @@ impl Session {
             terrain_id: self.info.id,
             snapshot: Snapshot::of(&self.geom.shape, self.mirror.cut()),
         });
-        let (ws, w) = match Self::establish(&self.config, resume).await {
+        let (ws, w, bytes) = match Self::establish(&self.config, resume).await {
             // The server refused the snapshot (e.g. it now holds another terrain): start afresh.
             Err(ClientError::Closed { code, text }) if code == CloseReason::BadSnapshot.code() => {
                 tracing::info!("resume refused ({text}); starting from the root");
@@ -299,6 +307,7 @@ impl Session {
             self.mirror = Mirror::new(&self.geom, self.info.root_z);
             self.mesh = FanMesh::new(&self.geom.shape, self.mirror.cut());
         }
+        self.counters.bytes_in += bytes as u64;
         self.max_in_flight = w.max_in_flight;
         self.idle_timeout = idle_of(&w);
         self.ws = Some(ws);
@@ -386,9 +395,12 @@ impl Session {
                 .map_err(|e| ClientError::Protocol(format!("bad delta: {e}")))?;
             let shape = &self.geom.shape;
             let mesh = &mut self.mesh;
-            let applied = self
-                .mirror
-                .apply(&self.geom, &delta, |c, n| mesh.update_around(shape, c, n));
+            let build = self.config.mesh;
+            let applied = self.mirror.apply(&self.geom, &delta, |c, n| {
+                if build {
+                    mesh.update_around(shape, c, n);
+                }
+            });
             if applied.is_err() {
                 self.counters.desyncs += 1;
                 tracing::warn!("desync after delta {}: starting again", d.delta.seq);

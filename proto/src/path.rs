@@ -8,6 +8,9 @@
 //!
 //! **Stress:** faster and lower: the same loop flown in 30 s (300 poses), 40-80 m above the ground,
 //! 25-35 degrees down.
+//!
+//! **Random** (for load tests, [`random_path`]): a standard-like loop whose centre, radius,
+//! direction and starting point come from a seed, so that many sessions fly distinct paths.
 
 use crate::view::Camera;
 use glam::Vec3;
@@ -44,15 +47,63 @@ pub fn camera_path(
     extent_y: f32,
     ground: impl Fn(f32, f32) -> f32,
 ) -> Vec<Camera> {
+    let radius = (0.3 * extent_x.min(extent_y)).min(1910.0);
+    let centre = Vec3::new(extent_x / 2.0, extent_y / 2.0, 0.0);
+    loop_path(kind, centre, radius, 1.0, 0.0, ground)
+}
+
+/// A standard-paced loop for load tests: centre, radius (0.15-0.3 of the shorter side, at most
+/// 1910 m), direction and starting phase drawn from `seed` (splitmix64), so that sessions with
+/// different seeds fly different paths over the same terrain.
+pub fn random_path(
+    seed: u64,
+    extent_x: f32,
+    extent_y: f32,
+    ground: impl Fn(f32, f32) -> f32,
+) -> Vec<Camera> {
+    let mut state = seed;
+    let mut next = move || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let short = extent_x.min(extent_y);
+    let radius = ((0.15 + 0.15 * next()) * short).min(1910.0);
+    // Keep the loop (with its 15 % wobble) inside the terrain.
+    let margin = (radius * 1.15).min(short / 2.0);
+    let cx = margin + (extent_x - 2.0 * margin).max(0.0) * next();
+    let cy = margin + (extent_y - 2.0 * margin).max(0.0) * next();
+    let direction = if next() < 0.5 { 1.0 } else { -1.0 };
+    let phase = next();
+    loop_path(
+        PathKind::Standard,
+        Vec3::new(cx, cy, 0.0),
+        radius,
+        direction,
+        phase,
+        ground,
+    )
+}
+
+/// The loop of `kind`'s pace and heights around `centre`, counter-clockwise for `direction` 1
+/// (clockwise for -1), starting `phase` of a turn in.
+fn loop_path(
+    kind: PathKind,
+    centre: Vec3,
+    radius: f32,
+    direction: f32,
+    phase: f32,
+    ground: impl Fn(f32, f32) -> f32,
+) -> Vec<Camera> {
     let (seconds, agl_lo, agl_hi, pitch_lo, pitch_hi) = match kind {
         PathKind::Standard => (60.0, 100.0, 300.0, 10.0f32, 20.0f32),
         PathKind::Stress => (30.0, 40.0, 80.0, 25.0, 35.0),
     };
     let n = (seconds * PATH_HZ) as usize;
-    let radius = (0.3 * extent_x.min(extent_y)).min(1910.0);
-    let centre = Vec3::new(extent_x / 2.0, extent_y / 2.0, 0.0);
     let at = |t: f32| {
-        let th = TAU * t;
+        let th = direction * TAU * (t + phase);
         let r = radius * (1.0 + 0.15 * (3.0 * th).sin());
         centre + Vec3::new(r * th.cos(), r * th.sin(), 0.0)
     };
@@ -115,5 +166,24 @@ mod tests {
             p,
             camera_path(PathKind::Standard, 40_000.0, 30_000.0, ground)
         );
+    }
+
+    #[test]
+    fn random_paths_differ_by_seed_and_stay_over_the_terrain() {
+        let ground = |x: f32, y: f32| (x * 0.001).sin() * 300.0 + (y * 0.002).cos() * 200.0 + 500.0;
+        let (ex, ey) = (40_000.0, 30_000.0);
+        let a = random_path(1, ex, ey, ground);
+        let b = random_path(2, ex, ey, ground);
+        assert_eq!(a.len(), 600);
+        assert_ne!(a[0].eye, b[0].eye);
+        assert_eq!(a, random_path(1, ex, ey, ground), "deterministic");
+        for c in a.iter().chain(&b) {
+            assert!(c.is_valid());
+            assert!(
+                (0.0..=ex).contains(&c.eye.x) && (0.0..=ey).contains(&c.eye.y),
+                "{c:?}"
+            );
+            assert!(c.eye.z - ground(c.eye.x, c.eye.y) >= 99.0);
+        }
     }
 }

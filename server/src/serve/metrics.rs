@@ -183,8 +183,38 @@ impl Metrics {
                 self.errors[i].load(Relaxed)
             );
         }
+        if let Some((cpu, rss)) = process_usage() {
+            let _ = writeln!(
+                s,
+                "# HELP process_cpu_seconds_total User and system CPU time of the server process.\n# TYPE process_cpu_seconds_total counter\nprocess_cpu_seconds_total {cpu}"
+            );
+            let _ = writeln!(
+                s,
+                "# HELP process_resident_memory_bytes Resident memory of the server process (the mapped store included).\n# TYPE process_resident_memory_bytes gauge\nprocess_resident_memory_bytes {rss}"
+            );
+        }
         s
     }
+}
+
+/// CPU seconds and resident bytes of this process, from `/proc` (Linux; `None` elsewhere).
+fn process_usage() -> Option<(f64, u64)> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are the 12th and 13th.
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    // Clock ticks are USER_HZ, 100 on every Linux ABI.
+    let ticks = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let kb = status
+        .lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .trim()
+        .trim_end_matches("kB")
+        .trim()
+        .parse::<u64>()
+        .ok()?;
+    Some((ticks as f64 / 100.0, kb * 1024))
 }
 
 #[cfg(test)]

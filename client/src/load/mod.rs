@@ -1,0 +1,355 @@
+//! `relief-client load`: many real protocol sessions at once against one server, for the
+//! engineer who load-tests LOD update bandwidth.
+//!
+//! Each virtual client is a [`Session`] (mirror, digest check, acknowledgements; fans too with
+//! `mesh`) flying its own path: the standard or stress loop phase-shifted by its index, or a
+//! seeded random loop. Sessions start spread over the ramp, fly until the stage ends, and stop
+//! by themselves. Meanwhile a sampler scrapes the server's `/metrics` once a second for its CPU
+//! time, resident memory, sessions and updates.
+//!
+//! - [`stats`]: turning the flights and samples into a [`StageReport`].
+//! - [`report`]: the JSON file, the Markdown summary and the plots of `--report DIR`.
+
+pub mod report;
+pub mod stats;
+
+use crate::flight::{self, FlightLog, PathSpec};
+use crate::http::{self, HttpError};
+use crate::session::{Counters, Session, SessionConfig};
+use relief_proto::path::PathKind;
+use relief_proto::view::Camera;
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use std::time::{Duration, Instant};
+
+pub use stats::StageReport;
+
+/// Which paths the sessions fly.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoadPath {
+    /// The standard loop, phase-shifted per session.
+    Standard,
+    /// The stress loop, phase-shifted per session.
+    Stress,
+    /// A seeded random loop per session.
+    Random,
+}
+
+impl std::str::FromStr for LoadPath {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "standard" => Ok(LoadPath::Standard),
+            "stress" => Ok(LoadPath::Stress),
+            "random" => Ok(LoadPath::Random),
+            _ => Err(format!(
+                "unknown path {s:?}: use standard, stress or random"
+            )),
+        }
+    }
+}
+
+/// One stage of a load run.
+#[derive(Clone, Debug)]
+pub struct LoadOptions {
+    /// The stream's URL.
+    pub url: String,
+    /// Concurrent sessions.
+    pub sessions: usize,
+    /// How long every session flies once all have started.
+    pub duration: Duration,
+    /// Over how long the sessions start (evenly spread).
+    pub ramp: Duration,
+    /// Which paths.
+    pub path: LoadPath,
+    /// Seed of the random paths.
+    pub seed: u64,
+    /// Screen-space error threshold, pixels.
+    pub tau: f32,
+    /// Per-session bandwidth budget, bytes per second.
+    pub budget: Option<u32>,
+    /// Poses per second per session (0: each as soon as the previous is answered).
+    pub rate_hz: f64,
+    /// Rebuild fans as a viewer would.
+    pub mesh: bool,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// A load run that could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The server's HTTP API failed.
+    #[error(transparent)]
+    Http(#[from] HttpError),
+    /// The options make no sense.
+    #[error("{0}")]
+    Options(String),
+}
+
+/// What one virtual client did.
+#[derive(Debug, Default)]
+pub struct SessionOutcome {
+    /// Its flight.
+    pub log: FlightLog,
+    /// Its session counters.
+    pub counters: Counters,
+    /// Why it stopped early, if it did.
+    pub error: Option<String>,
+    /// Seconds it flew.
+    pub flown_s: f64,
+}
+
+/// One scrape of the server's `/metrics`.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct ServerSample {
+    /// Seconds since the stage began.
+    pub t_s: f64,
+    /// `process_cpu_seconds_total`.
+    pub cpu_s: f64,
+    /// `process_resident_memory_bytes`.
+    pub rss_bytes: f64,
+    /// `relief_sessions_active`.
+    pub sessions: f64,
+    /// `relief_updates_total`.
+    pub updates: f64,
+    /// `relief_bytes_out_total`.
+    pub bytes_out: f64,
+    /// Sum of `relief_errors_total` over kinds.
+    pub errors: f64,
+}
+
+/// Parses Prometheus text into series -> value.
+pub fn parse_metrics(text: &str) -> HashMap<String, f64> {
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.is_empty())
+        .filter_map(|l| {
+            let (k, v) = l.rsplit_once(' ')?;
+            Some((k.to_string(), v.parse().ok()?))
+        })
+        .collect()
+}
+
+/// Scrapes the server's metrics.
+pub async fn scrape(base: &str, t_s: f64) -> Result<ServerSample, HttpError> {
+    let body = http::request("GET", &format!("{base}/metrics"), "text/plain", Vec::new()).await?;
+    let m = parse_metrics(&String::from_utf8_lossy(&body));
+    let get = |k: &str| m.get(k).copied().unwrap_or(0.0);
+    Ok(ServerSample {
+        t_s,
+        cpu_s: get("process_cpu_seconds_total"),
+        rss_bytes: get("process_resident_memory_bytes"),
+        sessions: get("relief_sessions_active"),
+        updates: get("relief_updates_total"),
+        bytes_out: get("relief_bytes_out_total"),
+        errors: m
+            .iter()
+            .filter(|(k, _)| k.starts_with("relief_errors_total{"))
+            .map(|(_, v)| v)
+            .sum(),
+    })
+}
+
+/// The terrain's extent, from `GET /v1/terrain`.
+async fn terrain_extent(base: &str) -> Result<(f32, f32), LoadError> {
+    let t = http::get_json(&format!("{base}/v1/terrain")).await?;
+    let e = t["extent_m"]
+        .as_array()
+        .and_then(|a| Some((a.first()?.as_f64()? as f32, a.get(1)?.as_f64()? as f32)))
+        .ok_or_else(|| LoadError::Options("the server's /v1/terrain has no extent_m".into()))?;
+    Ok(e)
+}
+
+/// One virtual client's plan.
+struct Plan {
+    /// Its session settings.
+    config: SessionConfig,
+    /// Its path.
+    cams: Arc<Vec<Camera>>,
+    /// Where on the path it starts, poses.
+    phase: usize,
+    /// Poses per second.
+    rate_hz: f64,
+    /// The stage's clock.
+    t0: Instant,
+    /// When it connects.
+    start: Instant,
+    /// When it stops.
+    stop: Instant,
+    /// The stage's running count of deltas, for the progress bar.
+    deltas: Arc<AtomicU64>,
+}
+
+/// Flies one virtual client: connect at its start, fly until its stop.
+async fn virtual_client(plan: Plan) -> SessionOutcome {
+    let Plan {
+        config,
+        cams,
+        phase,
+        rate_hz,
+        t0,
+        start,
+        stop,
+        deltas,
+    } = plan;
+    tokio::time::sleep_until(start.into()).await;
+    let began = Instant::now();
+    let mut out = SessionOutcome::default();
+    let mut session = match Session::connect(config).await {
+        Ok(s) => s,
+        Err(e) => {
+            out.error = Some(e.to_string());
+            return out;
+        }
+    };
+    let n = cams.len();
+    let shifted: Vec<Camera> = (0..n).map(|k| cams[(phase + k) % n]).collect();
+    match flight::fly_poses(&mut session, &shifted, rate_hz, t0, Some(stop)).await {
+        Ok(log) => out.log = log,
+        Err(e) => out.error = Some(e.to_string()),
+    }
+    out.counters = session.counters();
+    deltas.fetch_add(out.counters.deltas, Relaxed);
+    out.flown_s = began.elapsed().as_secs_f64();
+    session.close().await;
+    out
+}
+
+/// Runs one stage and reports it.
+pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
+    if opts.sessions == 0 {
+        return Err(LoadError::Options("--sessions must be at least 1".into()));
+    }
+    if !(opts.rate_hz.is_finite() && opts.rate_hz >= 0.0) {
+        return Err(LoadError::Options("--rate must be 0 or more".into()));
+    }
+    let base = http::base_of(&opts.url)?;
+    let extent = terrain_extent(&base).await?;
+    // Paths: one shared loop for standard and stress (phase-shifted), one per session for random.
+    let mut paths: Vec<Arc<Vec<Camera>>> = Vec::new();
+    match opts.path {
+        LoadPath::Standard | LoadPath::Stress => {
+            let kind = if opts.path == LoadPath::Standard {
+                PathKind::Standard
+            } else {
+                PathKind::Stress
+            };
+            let cams = flight::server_path(&opts.url, extent, PathSpec::Kind(kind)).await?;
+            paths.push(Arc::new(cams));
+        }
+        LoadPath::Random => {
+            for i in 0..opts.sessions {
+                let spec = PathSpec::Random(opts.seed.wrapping_add(i as u64));
+                paths.push(Arc::new(
+                    flight::server_path(&opts.url, extent, spec).await?,
+                ));
+            }
+        }
+    }
+    let before = scrape(&base, 0.0).await?;
+    let t0 = Instant::now();
+    let ramp_end = t0 + opts.ramp;
+    let stop = ramp_end + opts.duration;
+    let deltas = Arc::new(AtomicU64::new(0));
+    let mut tasks = Vec::with_capacity(opts.sessions);
+    for i in 0..opts.sessions {
+        let mut config = SessionConfig::new(&opts.url);
+        config.tau = opts.tau;
+        config.budget = opts.budget;
+        config.mesh = opts.mesh;
+        let cams = paths[i % paths.len()].clone();
+        let phase = if paths.len() == 1 {
+            i * cams.len() / opts.sessions
+        } else {
+            0
+        };
+        let start = t0 + opts.ramp.mul_f64(i as f64 / opts.sessions as f64);
+        tasks.push(tokio::spawn(virtual_client(Plan {
+            config,
+            cams,
+            phase,
+            rate_hz: opts.rate_hz,
+            t0,
+            start,
+            stop,
+            deltas: deltas.clone(),
+        })));
+    }
+    // The sampler and the progress bar, until every session is done.
+    let total = (opts.ramp + opts.duration).as_secs().max(1);
+    let bar = progress_bar(opts.progress, total);
+    let mut samples = vec![before];
+    let all_done = futures_util::future::join_all(tasks);
+    tokio::pin!(all_done);
+    let mut tick = tokio::time::interval(Duration::from_secs(1));
+    let outcomes = loop {
+        tokio::select! {
+            done = &mut all_done => break done,
+            _ = tick.tick() => {
+                let t = t0.elapsed().as_secs_f64();
+                if let Ok(s) = scrape(&base, t).await {
+                    bar.set_message(format!(
+                        "{} sessions on the server, {} updates",
+                        s.sessions, s.updates - before.updates
+                    ));
+                    samples.push(s);
+                }
+                bar.set_position((t as u64).min(total));
+            }
+        }
+    };
+    bar.finish_and_clear();
+    samples.push(scrape(&base, t0.elapsed().as_secs_f64()).await?);
+    let outcomes: Vec<SessionOutcome> = outcomes
+        .into_iter()
+        .map(|r| {
+            r.unwrap_or_else(|e| SessionOutcome {
+                error: Some(format!("virtual client panicked: {e}")),
+                ..SessionOutcome::default()
+            })
+        })
+        .collect();
+    Ok(stats::summarise(
+        opts,
+        &outcomes,
+        &samples,
+        opts.ramp.as_secs_f64(),
+    ))
+}
+
+fn progress_bar(show: bool, total: u64) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(total);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} s  {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Runs the stages of a sweep in turn (each with `sessions` replaced) and reports them all.
+pub async fn run_sweep(
+    opts: &LoadOptions,
+    counts: &[usize],
+) -> Result<Vec<StageReport>, LoadError> {
+    let mut stages = Vec::new();
+    for &n in counts {
+        let o = LoadOptions {
+            sessions: n,
+            ..opts.clone()
+        };
+        if opts.progress {
+            eprintln!("stage: {n} sessions");
+        }
+        stages.push(run_stage(&o).await?);
+        // Let the server settle (sessions close, memory returns) between stages.
+        tokio::time::sleep(Duration::from_secs(1)).await;
+    }
+    Ok(stages)
+}

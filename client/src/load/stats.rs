@@ -1,0 +1,273 @@
+//! A load stage's figures: bandwidth per session and in aggregate, deltas and changes per
+//! second, latency from an HDR histogram, errors, and the server's CPU and memory as scraped.
+//! Field meanings are listed in the README's load-test table.
+
+use super::{LoadOptions, ServerSample, SessionOutcome};
+use crate::flight::quantile;
+use hdrhistogram::Histogram;
+use serde::Serialize;
+
+/// Mean and percentiles of a set of values.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Dist {
+    /// Mean.
+    pub mean: f64,
+    /// Median.
+    pub p50: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// Largest.
+    pub max: f64,
+}
+
+impl Dist {
+    fn of(mut v: Vec<f64>) -> Dist {
+        if v.is_empty() {
+            return Dist::default();
+        }
+        v.sort_by(f64::total_cmp);
+        Dist {
+            mean: v.iter().sum::<f64>() / v.len() as f64,
+            p50: quantile(&v, 0.5),
+            p99: quantile(&v, 0.99),
+            max: v[v.len() - 1],
+        }
+    }
+}
+
+/// Latency percentiles from the HDR histogram, milliseconds.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct Latency {
+    /// Median.
+    pub p50: f64,
+    /// 90th percentile.
+    pub p90: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// Largest.
+    pub max: f64,
+    /// Poses measured.
+    pub samples: u64,
+}
+
+/// The server's side of a stage, from `/metrics`.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct ServerFigures {
+    /// CPU seconds the server process used during the stage.
+    pub cpu_s: f64,
+    /// LOD updates it computed.
+    pub updates: f64,
+    /// CPU milliseconds per update (all of the process's CPU over updates).
+    pub cpu_ms_per_update: f64,
+    /// CPU seconds per wall second (1.0 = one core busy).
+    pub cpu_utilisation: f64,
+    /// Resident memory before the stage, bytes.
+    pub rss_before_bytes: f64,
+    /// Largest resident memory during the stage, bytes.
+    pub rss_peak_bytes: f64,
+    /// `(peak - before) / sessions`: memory per session beyond the shared store.
+    pub rss_per_session_bytes: f64,
+    /// Errors the server counted during the stage (all kinds).
+    pub errors: f64,
+    /// Message bytes the server sent during the stage.
+    pub bytes_out: f64,
+}
+
+/// One second of the stage, for the bandwidth plot.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct TimelinePoint {
+    /// Seconds since the stage began.
+    pub t_s: f64,
+    /// Bytes received by all sessions in this second.
+    pub bytes_per_s: f64,
+    /// Sessions open on the server.
+    pub sessions: f64,
+    /// Server CPU seconds per second.
+    pub server_cpu: f64,
+}
+
+/// Everything one stage measured.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct StageReport {
+    /// Concurrent sessions asked for.
+    pub sessions: usize,
+    /// Path kind.
+    pub path: String,
+    /// Tau, pixels.
+    pub tau: f32,
+    /// Per-session budget, bytes per second.
+    pub budget: Option<u32>,
+    /// Poses per second per session.
+    pub rate_hz: f64,
+    /// Whether fans were rebuilt.
+    pub mesh: bool,
+    /// Seconds of the measured window (after the ramp).
+    pub steady_s: f64,
+    /// Sessions that flew to the end.
+    pub sessions_ok: usize,
+    /// Sessions that stopped with an error.
+    pub errors: usize,
+    /// Up to five distinct error messages.
+    pub error_samples: Vec<String>,
+    /// Digest mismatches.
+    pub desyncs: u64,
+    /// Reconnections.
+    pub reconnects: u64,
+    /// Poses sent.
+    pub poses: u64,
+    /// Deltas applied.
+    pub deltas: u64,
+    /// Deltas per second, all sessions, over the whole stage.
+    pub deltas_per_s: f64,
+    /// Splits and merges applied per second, all sessions.
+    pub changes_per_s: f64,
+    /// Bytes all sessions received (payloads).
+    pub bytes_client: u64,
+    /// Bytes per second over all sessions, per second of the measured window.
+    pub aggregate_bytes_per_s: Dist,
+    /// Each session's mean bytes per second, over sessions.
+    pub session_bytes_per_s: Dist,
+    /// Camera-to-delta-applied latency of every pose but each session's first.
+    pub latency_ms: Latency,
+    /// Latency of each session's first pose (its delta builds the whole cut).
+    pub first_latency_ms: Dist,
+    /// The server's figures.
+    pub server: ServerFigures,
+    /// Per second: aggregate bandwidth, sessions, server CPU.
+    pub timeline: Vec<TimelinePoint>,
+    /// Latency CDF: (milliseconds, fraction of poses at or below).
+    pub latency_cdf: Vec<(f64, f64)>,
+}
+
+/// Builds the report of a stage whose measured window starts `ramp_s` after its start.
+pub fn summarise(
+    opts: &LoadOptions,
+    outcomes: &[SessionOutcome],
+    samples: &[ServerSample],
+    ramp_s: f64,
+) -> StageReport {
+    // Latencies in microseconds, 1 us to 10 min, 3 significant digits.
+    let mut hist = Histogram::<u64>::new_with_bounds(1, 600_000_000, 3)
+        .expect("constant histogram bounds are valid");
+    let mut bins: Vec<f64> = Vec::new();
+    let mut errors = Vec::new();
+    let mut r = StageReport {
+        sessions: opts.sessions,
+        path: format!("{:?}", opts.path).to_lowercase(),
+        tau: opts.tau,
+        budget: opts.budget,
+        rate_hz: opts.rate_hz,
+        mesh: opts.mesh,
+        ..StageReport::default()
+    };
+    let mut firsts = Vec::new();
+    let mut session_rates = Vec::new();
+    for o in outcomes {
+        match &o.error {
+            Some(e) => errors.push(e.clone()),
+            None => r.sessions_ok += 1,
+        }
+        r.desyncs += o.counters.desyncs;
+        r.reconnects += o.counters.reconnects;
+        r.deltas += o.counters.deltas;
+        r.bytes_client += o.counters.bytes_in;
+        r.poses += o.log.poses as u64;
+        firsts.extend(o.log.first_latency_ms);
+        for &ms in &o.log.latencies_ms {
+            let _ = hist.record(((ms * 1e3).round() as u64).max(1));
+        }
+        if o.flown_s > 0.0 {
+            session_rates.push(o.counters.bytes_in as f64 / o.flown_s);
+        }
+        for (s, &b) in o.log.bytes_per_second.iter().enumerate() {
+            if bins.len() <= s {
+                bins.resize(s + 1, 0.0);
+            }
+            bins[s] += b as f64;
+        }
+        r.changes_per_s += o.log.changes as f64;
+    }
+    r.errors = errors.len();
+    errors.sort();
+    errors.dedup();
+    r.error_samples = errors.into_iter().take(5).collect();
+    let wall = samples.last().map_or(0.0, |s| s.t_s).max(1e-9);
+    r.steady_s = (wall - ramp_s).max(0.0);
+    r.deltas_per_s = r.deltas as f64 / wall;
+    r.changes_per_s /= wall;
+    // The measured window: whole seconds after the ramp (the last, partial second left out).
+    let first = ramp_s.ceil() as usize;
+    let last = (wall.floor() as usize).min(bins.len());
+    r.aggregate_bytes_per_s = Dist::of(bins.get(first..last).unwrap_or(&[]).to_vec());
+    r.session_bytes_per_s = Dist::of(session_rates);
+    r.first_latency_ms = Dist::of(firsts);
+    let ms = |q: f64| hist.value_at_quantile(q) as f64 / 1e3;
+    r.latency_ms = Latency {
+        p50: ms(0.5),
+        p90: ms(0.9),
+        p99: ms(0.99),
+        max: hist.max() as f64 / 1e3,
+        samples: hist.len(),
+    };
+    r.latency_cdf = hist
+        .iter_quantiles(2)
+        .map(|v| (v.value_iterated_to() as f64 / 1e3, v.quantile_iterated_to()))
+        .collect();
+    if let (Some(a), Some(b)) = (samples.first(), samples.last()) {
+        let peak = samples
+            .iter()
+            .map(|s| s.rss_bytes)
+            .fold(a.rss_bytes, f64::max);
+        let updates = b.updates - a.updates;
+        r.server = ServerFigures {
+            cpu_s: b.cpu_s - a.cpu_s,
+            updates,
+            cpu_ms_per_update: if updates > 0.0 {
+                (b.cpu_s - a.cpu_s) * 1e3 / updates
+            } else {
+                0.0
+            },
+            cpu_utilisation: (b.cpu_s - a.cpu_s) / wall,
+            rss_before_bytes: a.rss_bytes,
+            rss_peak_bytes: peak,
+            rss_per_session_bytes: (peak - a.rss_bytes) / opts.sessions.max(1) as f64,
+            errors: b.errors - a.errors,
+            bytes_out: b.bytes_out - a.bytes_out,
+        };
+    }
+    r.timeline = samples
+        .windows(2)
+        .map(|w| {
+            let s = w[1].t_s.floor() as usize;
+            TimelinePoint {
+                t_s: w[1].t_s,
+                bytes_per_s: bins.get(s.saturating_sub(1)).copied().unwrap_or(0.0),
+                sessions: w[1].sessions,
+                server_cpu: (w[1].cpu_s - w[0].cpu_s) / (w[1].t_s - w[0].t_s).max(1e-9),
+            }
+        })
+        .collect();
+    r
+}
+
+/// Where a sweep breaks away: the first stage whose p99 latency exceeds `p99_ms` or that has
+/// errors or desyncs, with the reason; `None` if every stage held.
+pub fn knee(stages: &[StageReport], p99_ms: f64) -> Option<(usize, String)> {
+    stages.iter().find_map(|s| {
+        if s.errors > 0 || s.server.errors > 0.0 {
+            Some((
+                s.sessions,
+                format!("{} client and {} server errors", s.errors, s.server.errors),
+            ))
+        } else if s.desyncs > 0 {
+            Some((s.sessions, format!("{} desyncs", s.desyncs)))
+        } else if s.latency_ms.p99 > p99_ms {
+            Some((
+                s.sessions,
+                format!("p99 latency {:.1} ms over {p99_ms} ms", s.latency_ms.p99),
+            ))
+        } else {
+            None
+        }
+    })
+}
