@@ -102,7 +102,7 @@ pub struct SessionOutcome {
 }
 
 /// One scrape of the server's `/metrics`.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, Default, serde::Serialize)]
 pub struct ServerSample {
     /// Seconds since the stage began.
     pub t_s: f64,
@@ -118,6 +118,8 @@ pub struct ServerSample {
     pub bytes_out: f64,
     /// Sum of `relief_errors_total` over kinds.
     pub errors: f64,
+    /// `relief_errors_total` by kind.
+    pub errors_by_kind: std::collections::BTreeMap<String, f64>,
 }
 
 /// Parses Prometheus text into series -> value.
@@ -148,6 +150,13 @@ pub async fn scrape(base: &str, t_s: f64) -> Result<ServerSample, HttpError> {
             .filter(|(k, _)| k.starts_with("relief_errors_total{"))
             .map(|(_, v)| v)
             .sum(),
+        errors_by_kind: m
+            .iter()
+            .filter_map(|(k, v)| {
+                let kind = k.strip_prefix("relief_errors_total{kind=\"")?;
+                Some((kind.trim_end_matches("\"}").to_string(), *v))
+            })
+            .collect(),
     })
 }
 
@@ -279,7 +288,7 @@ pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
     // The sampler and the progress bar, until every session is done.
     let total = (opts.ramp + opts.duration).as_secs().max(1);
     let bar = progress_bar(opts.progress, total);
-    let mut samples = vec![before];
+    let mut samples = vec![before.clone()];
     let all_done = futures_util::future::join_all(tasks);
     tokio::pin!(all_done);
     let mut tick = tokio::time::interval(Duration::from_secs(1));

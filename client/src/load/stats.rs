@@ -51,7 +51,7 @@ pub struct Latency {
 }
 
 /// The server's side of a stage, from `/metrics`.
-#[derive(Clone, Copy, Debug, Default, Serialize)]
+#[derive(Clone, Debug, Default, Serialize)]
 pub struct ServerFigures {
     /// CPU seconds the server process used during the stage.
     pub cpu_s: f64,
@@ -69,6 +69,9 @@ pub struct ServerFigures {
     pub rss_per_session_bytes: f64,
     /// Errors the server counted during the stage (all kinds).
     pub errors: f64,
+    /// The same by kind (kinds with none left out): e.g. `rate_limited` when the load
+    /// generator opens connections faster than the server's per-IP rate allows.
+    pub errors_by_kind: std::collections::BTreeMap<String, f64>,
     /// Message bytes the server sent during the stage.
     pub bytes_out: f64,
 }
@@ -232,18 +235,36 @@ pub fn summarise(
             rss_peak_bytes: peak,
             rss_per_session_bytes: (peak - a.rss_bytes) / opts.sessions.max(1) as f64,
             errors: b.errors - a.errors,
+            errors_by_kind: b
+                .errors_by_kind
+                .iter()
+                .map(|(k, v)| {
+                    (
+                        k.clone(),
+                        v - a.errors_by_kind.get(k).copied().unwrap_or(0.0),
+                    )
+                })
+                .filter(|(_, v)| *v > 0.0)
+                .collect(),
             bytes_out: b.bytes_out - a.bytes_out,
         };
     }
-    r.timeline = samples
-        .windows(2)
-        .map(|w| {
-            let s = w[1].t_s.floor() as usize;
+    // One point per whole second of bytes, with the server sample that closes that second.
+    r.timeline = bins
+        .iter()
+        .enumerate()
+        .filter(|_| !samples.is_empty())
+        .map(|(sec, &bytes)| {
+            let end = samples
+                .iter()
+                .position(|x| x.t_s >= sec as f64 + 1.0)
+                .unwrap_or(samples.len().saturating_sub(1));
+            let (prev, cur) = (&samples[end.saturating_sub(1)], &samples[end]);
             TimelinePoint {
-                t_s: w[1].t_s,
-                bytes_per_s: bins.get(s.saturating_sub(1)).copied().unwrap_or(0.0),
-                sessions: w[1].sessions,
-                server_cpu: (w[1].cpu_s - w[0].cpu_s) / (w[1].t_s - w[0].t_s).max(1e-9),
+                t_s: sec as f64 + 0.5,
+                bytes_per_s: bytes,
+                sessions: cur.sessions,
+                server_cpu: (cur.cpu_s - prev.cpu_s) / (cur.t_s - prev.t_s).max(1e-9),
             }
         })
         .collect();
@@ -255,9 +276,20 @@ pub fn summarise(
 pub fn knee(stages: &[StageReport], p99_ms: f64) -> Option<(usize, String)> {
     stages.iter().find_map(|s| {
         if s.errors > 0 || s.server.errors > 0.0 {
+            let kinds: Vec<String> = s
+                .server
+                .errors_by_kind
+                .iter()
+                .map(|(k, v)| format!("{v} {k}"))
+                .collect();
+            let kinds = if kinds.is_empty() {
+                "none".to_string()
+            } else {
+                kinds.join(", ")
+            };
             Some((
                 s.sessions,
-                format!("{} client and {} server errors", s.errors, s.server.errors),
+                format!("{} client errors; server errors: {kinds}", s.errors),
             ))
         } else if s.desyncs > 0 {
             Some((s.sessions, format!("{} desyncs", s.desyncs)))
