@@ -21,29 +21,50 @@ struct Cli {
     command: Command,
 }
 
+/// What every streaming command asks of the server.
+#[derive(clap::Args)]
+struct StreamArgs {
+    /// The stream's URL.
+    #[arg(
+        long,
+        env = "RELIEF_SERVER",
+        default_value = "ws://127.0.0.1:8080/v1/stream"
+    )]
+    server: String,
+    /// Screen-space error threshold in pixels.
+    #[arg(long, default_value_t = 1.0)]
+    tau: f32,
+    /// Bandwidth budget per session in bytes per second [default: none].
+    #[arg(long)]
+    budget: Option<u32>,
+    /// Poses per second per session; 0 sends each pose as soon as the previous one is answered.
+    #[arg(long, default_value_t = fly::DEFAULT_RATE_HZ)]
+    rate: f64,
+}
+
+impl StreamArgs {
+    fn session(&self) -> anyhow::Result<SessionConfig> {
+        anyhow::ensure!(
+            self.rate.is_finite() && self.rate >= 0.0,
+            "--rate must be 0 or more"
+        );
+        Ok(SessionConfig {
+            tau: self.tau,
+            budget: self.budget,
+            ..SessionConfig::new(&self.server)
+        })
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Fly one session along a camera path and print deltas, bandwidth, latency and desyncs.
     Fly {
-        /// The stream's URL.
-        #[arg(
-            long,
-            env = "RELIEF_SERVER",
-            default_value = "ws://127.0.0.1:8080/v1/stream"
-        )]
-        server: String,
+        #[command(flatten)]
+        stream: StreamArgs,
         /// Which path: `standard` (60 s loop, 100-300 m above ground) or `stress`.
         #[arg(long, default_value = "standard")]
         path: PathKind,
-        /// Screen-space error threshold in pixels.
-        #[arg(long, default_value_t = 1.0)]
-        tau: f32,
-        /// Bandwidth budget in bytes per second [default: none].
-        #[arg(long)]
-        budget: Option<u32>,
-        /// Poses per second; 0 sends each pose as soon as the previous one is answered.
-        #[arg(long, default_value_t = fly::DEFAULT_RATE_HZ)]
-        rate: f64,
         /// Print one JSON object instead of an indented one.
         #[arg(long)]
         json: bool,
@@ -51,13 +72,8 @@ enum Command {
     /// Run many sessions at once against a server and report bandwidth, latency, errors and the
     /// server's CPU and memory; with --sweep, run stages of growing size and find the knee.
     Load {
-        /// The stream's URL.
-        #[arg(
-            long,
-            env = "RELIEF_SERVER",
-            default_value = "ws://127.0.0.1:8080/v1/stream"
-        )]
-        server: String,
+        #[command(flatten)]
+        stream: StreamArgs,
         /// Concurrent sessions (ignored with --sweep).
         #[arg(long, default_value_t = 10)]
         sessions: usize,
@@ -71,15 +87,6 @@ enum Command {
         /// Seed of the random paths.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Screen-space error threshold in pixels.
-        #[arg(long, default_value_t = 1.0)]
-        tau: f32,
-        /// Per-session bandwidth budget in bytes per second [default: none].
-        #[arg(long)]
-        budget: Option<u32>,
-        /// Poses per second per session; 0 sends each pose as soon as the previous is answered.
-        #[arg(long, default_value_t = fly::DEFAULT_RATE_HZ)]
-        rate: f64,
         /// Seconds over which sessions start, evenly spread [default: 10% of the duration].
         #[arg(long)]
         ramp: Option<f64>,
@@ -126,23 +133,11 @@ fn run() -> anyhow::Result<()> {
         .enable_all()
         .build()?;
     match Cli::parse().command {
-        Command::Fly {
-            server,
-            path,
-            tau,
-            budget,
-            rate,
-            json,
-        } => {
-            anyhow::ensure!(rate.is_finite() && rate >= 0.0, "--rate must be 0 or more");
+        Command::Fly { stream, path, json } => {
             let opts = FlyOptions {
-                session: SessionConfig {
-                    tau,
-                    budget,
-                    ..SessionConfig::new(&server)
-                },
+                session: stream.session()?,
                 path,
-                rate_hz: rate,
+                rate_hz: stream.rate,
             };
             let report = rt.block_on(fly::fly(&opts))?;
             if json {
@@ -152,14 +147,11 @@ fn run() -> anyhow::Result<()> {
             }
         }
         Command::Load {
-            server,
+            stream,
             sessions,
             duration,
             path,
             seed,
-            tau,
-            budget,
-            rate,
             ramp,
             mesh,
             sweep,
@@ -177,16 +169,17 @@ fn run() -> anyhow::Result<()> {
                 ramp.is_finite() && (0.0..1e6).contains(&ramp),
                 "--ramp must be 0 or more seconds"
             );
+            let session = stream.session()?;
             let opts = LoadOptions {
-                url: server,
+                url: session.url,
                 sessions,
                 duration: Duration::from_secs_f64(duration),
                 ramp: Duration::from_secs_f64(ramp),
                 path,
                 seed,
-                tau,
-                budget,
-                rate_hz: rate,
+                tau: session.tau,
+                budget: session.budget,
+                rate_hz: stream.rate,
                 mesh,
                 progress: !quiet,
             };

@@ -245,7 +245,7 @@ pub fn budgeted_update(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lod::diff::tests::{camera, lens, pose, store};
+    use crate::lod::tests::{camera, lens, pose, store};
     use crate::lod::vertex::UpdateStats;
     use crate::store::Store;
     use proptest::prelude::*;

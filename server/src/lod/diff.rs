@@ -61,7 +61,7 @@ pub(super) mod tests {
     use relief_proto::tree::NodeId;
     use relief_proto::view::ViewState;
 
-    pub(crate) use crate::lod::tests::{camera, lens, store};
+    use crate::lod::tests::{Pose, camera, lens, pose, store};
 
     fn sorted_active(cut: &Cut, s: &Store) -> Vec<NodeId> {
         let mut v = cut.active_nodes(&s.geometry().shape);
@@ -99,18 +99,6 @@ pub(super) mod tests {
         d.merges
             .iter()
             .any(|m| m.parent().is_some_and(|p| d.merges.contains(&p)))
-    }
-
-    pub(crate) type Pose = (f32, f32, f32, f32, f32);
-
-    pub(crate) fn pose() -> impl Strategy<Value = Pose> {
-        (
-            0.0f32..1.0,
-            0.0f32..1.0,
-            0.0f32..1.0,
-            0.0f32..1.0,
-            0.0f32..1.0,
-        )
     }
 
     proptest! {

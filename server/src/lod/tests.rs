@@ -100,9 +100,11 @@ fn bottom_up(engine: &VertexEngine<'_>, view: &ViewState, tau: f32) -> Vec<NodeI
     out
 }
 
-type Pose = (f32, f32, f32, f32, f32);
+/// A camera pose as five fractions (position, height, heading, pitch) for [`camera`].
+pub(crate) type Pose = (f32, f32, f32, f32, f32);
 
-fn pose() -> impl Strategy<Value = Pose> {
+/// Random poses.
+pub(crate) fn pose() -> impl Strategy<Value = Pose> {
     (
         0.0f32..1.0,
         0.0f32..1.0,
