@@ -28,6 +28,7 @@ use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{BoxView, ViewState};
+use rustc_hash::FxHashMap;
 
 /// Distance bands: band `b` holds groups whose boxes lie within `2^b` metres of the eye.
 const BANDS: usize = 48;
@@ -57,8 +58,10 @@ fn unpack(v: u32) -> (f64, usize) {
 /// One band's timing wheel: node indices bucketed by due odometer reading.
 #[derive(Default)]
 struct Wheel {
-    /// `WHEEL` buckets; bucket `i` holds keys in `[(cursor - cursor % WHEEL + i) * width, ...)`.
-    buckets: Vec<Vec<u32>>,
+    /// The occupied ones of `WHEEL` buckets, by slot; slot `i` holds keys in
+    /// `[(cursor - cursor % WHEEL + i) * width, ...)`. Sparse, because most slots of most bands
+    /// are empty and a dense array of them was most of a small session's memory.
+    buckets: FxHashMap<u32, Vec<u32>>,
     /// Keys beyond the wheel's horizon, filed again each time the wheel turns.
     overflow: Vec<u32>,
     /// The bucket (absolute index) drained last.
@@ -142,8 +145,8 @@ impl VertexSession {
             .wheels
             .iter()
             .map(|w| {
-                (w.buckets.iter().map(Vec::capacity).sum::<usize>() + w.overflow.capacity()) * 4
-                    + w.buckets.capacity() * std::mem::size_of::<Vec<u32>>()
+                (w.buckets.values().map(Vec::capacity).sum::<usize>() + w.overflow.capacity()) * 4
+                    + w.buckets.capacity() * (std::mem::size_of::<(u32, Vec<u32>)>() + 1)
             })
             .sum();
         self.cut.memory_bytes() + queued + std::mem::size_of::<Self>()
@@ -161,12 +164,13 @@ impl VertexSession {
     fn enqueue(&mut self, idx: u32, packed: u32) {
         let (key, band) = unpack(packed);
         let wheel = &mut self.wheels[band];
-        if wheel.buckets.is_empty() {
-            wheel.buckets = vec![Vec::new(); WHEEL as usize];
-        }
         let at = ((key / width(band)) as u64).max(wheel.cursor);
         if at - wheel.cursor < WHEEL {
-            wheel.buckets[(at % WHEEL) as usize].push(idx);
+            wheel
+                .buckets
+                .entry((at % WHEEL) as u32)
+                .or_default()
+                .push(idx);
         } else {
             wheel.overflow.push(idx);
         }
@@ -198,15 +202,18 @@ impl VertexSession {
         for band in 0..BANDS {
             let now = self.odometers[band];
             let wheel = &mut self.wheels[band];
-            if wheel.buckets.is_empty() {
-                continue;
-            }
             let target = (now / width(band)) as u64;
             let first = wheel.cursor;
+            if wheel.buckets.is_empty() && wheel.overflow.is_empty() {
+                // Nothing filed: the wheel turns to the odometer with nothing to drain.
+                wheel.cursor = target.max(first);
+                continue;
+            }
             let last = target.min(first + WHEEL - 1);
             for at in first..=last {
-                let bucket = std::mem::take(&mut wheel.buckets[(at % WHEEL) as usize]);
-                later.extend(bucket.into_iter().map(|i| (i, band)));
+                if let Some(bucket) = wheel.buckets.remove(&((at % WHEEL) as u32)) {
+                    later.extend(bucket.into_iter().map(|i| (i, band)));
+                }
             }
             if target / WHEEL != first / WHEEL || target >= first + WHEEL {
                 later.extend(wheel.overflow.drain(..).map(|i| (i, band)));
