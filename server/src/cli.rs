@@ -146,8 +146,12 @@ fn run() -> anyhow::Result<()> {
         Command::Serve(args) => {
             let config = args.resolve().context("bad configuration")?;
             tracing::info!(?config, "starting");
+            // LOD updates run on the blocking pool; more threads than cores only add stacks
+            // and allocator arenas (resident memory), not throughput.
+            let cores = std::thread::available_parallelism().map_or(2, |n| n.get());
             tokio::runtime::Builder::new_multi_thread()
                 .enable_all()
+                .max_blocking_threads(2 * cores)
                 .build()?
                 .block_on(crate::serve::run(config))?;
         }
