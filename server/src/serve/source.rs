@@ -20,7 +20,7 @@ pub enum SourceError {
     #[error("cannot load the DEM: {0}")]
     Dem(#[from] dem::DemError),
     /// The store cannot be built, written or opened.
-    #[error("store {path}: {source}")]
+    #[error("cannot use the store {path}")]
     Store {
         /// The store file.
         path: String,
@@ -85,7 +85,13 @@ pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, S
                 tracing::info!("using cached store {}", path.display());
                 return Ok(s);
             }
-            Err(e) => tracing::warn!("rebuilding the cached store: {e}"),
+            Err(e) => {
+                let why = std::error::Error::source(&e).map(|s| s.to_string());
+                tracing::warn!(
+                    "rebuilding the cached store: {e}: {}",
+                    why.unwrap_or_default()
+                );
+            }
         }
     }
     std::fs::create_dir_all(cache_dir).map_err(|source| SourceError::Cache {
