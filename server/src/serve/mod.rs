@@ -6,7 +6,8 @@
 //! - [`state`]: the shared state and [`state::app`], the router (testable without a socket).
 //! - [`http`]: the HTTP endpoints and their error type.
 //! - [`ws`]: the WebSocket upgrade and session admission.
-//! - [`session`]: one session's protocol loop, generic over `Sink + Stream`.
+//! - [`session`]: one session's protocol (hello, welcome, flow, closes), generic over
+//!   `Sink + Stream`.
 //! - [`stream`]: one session's LOD state and deltas, without I/O.
 //! - [`validate`]: checks of client-supplied lenses, cameras and parameters.
 //! - [`limits`]: session counts per server and per address, and the connection rate.

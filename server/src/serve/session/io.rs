@@ -1,0 +1,125 @@
+//! One message in or out of a session: the idle timeout on both, decoding with the size limit,
+//! and the close reason for each way it can fail.
+
+use crate::serve::state::{AppState, SessionStats};
+use axum::extract::ws::Message;
+use futures_util::{Sink, SinkExt, Stream, StreamExt};
+use relief_proto::close::CloseReason;
+use relief_proto::codec;
+use relief_proto::msg::{ClientMsg, ServerMsg};
+use std::error::Error as StdError;
+use std::sync::atomic::Ordering::Relaxed;
+
+/// How a session ended.
+pub(super) type Ended = Result<(), (CloseReason, String)>;
+
+pub(super) fn fail<T>(
+    reason: CloseReason,
+    detail: impl Into<String>,
+) -> Result<T, (CloseReason, String)> {
+    Err((reason, detail.into()))
+}
+
+/// Whether a socket error is the codec's message-size limit.
+fn too_large(e: &(dyn StdError + 'static)) -> bool {
+    let mut cur = Some(e);
+    while let Some(err) = cur {
+        if let Some(t) = err.downcast_ref::<tungstenite::Error>() {
+            return matches!(t, tungstenite::Error::Capacity(_));
+        }
+        cur = err.source();
+    }
+    false
+}
+
+/// Receives the next message within the idle timeout. `None`: the client closed.
+pub(super) async fn receive<S, E>(
+    socket: &mut S,
+    state: &AppState,
+) -> Result<Option<ClientMsg>, (CloseReason, String)>
+where
+    S: Stream<Item = Result<Message, E>> + Unpin,
+    E: StdError + 'static,
+{
+    loop {
+        let next = tokio::time::timeout(state.limits.idle_timeout, socket.next()).await;
+        let msg = match next {
+            Err(_) => {
+                return fail(
+                    CloseReason::Idle,
+                    format!(
+                        "no message for {:.0} s",
+                        state.limits.idle_timeout.as_secs_f64()
+                    ),
+                );
+            }
+            Ok(None) => return Ok(None),
+            Ok(Some(Err(e))) if too_large(&e) => {
+                return fail(
+                    CloseReason::TooLarge,
+                    format!(
+                        "message exceeds the limit of {} bytes",
+                        state.limits.max_message_bytes
+                    ),
+                );
+            }
+            Ok(Some(Err(_))) => return Ok(None),
+            Ok(Some(Ok(m))) => m,
+        };
+        match msg {
+            Message::Binary(bytes) => {
+                state
+                    .metrics
+                    .bytes_in_total
+                    .fetch_add(bytes.len() as u64, Relaxed);
+                return match codec::decode::<ClientMsg>(
+                    &bytes,
+                    state.limits.max_message_bytes as usize,
+                ) {
+                    Ok(m) => Ok(Some(m)),
+                    Err(e) => fail(CloseReason::Malformed, e.to_string()),
+                };
+            }
+            Message::Text(_) => {
+                return fail(
+                    CloseReason::Malformed,
+                    "text frames are not part of the protocol; send binary frames",
+                );
+            }
+            Message::Close(_) => return Ok(None),
+            Message::Ping(_) | Message::Pong(_) => continue,
+        }
+    }
+}
+
+/// Sends one message within the idle timeout.
+pub(super) async fn send<S>(
+    socket: &mut S,
+    state: &AppState,
+    stats: &SessionStats,
+    msg: &ServerMsg,
+) -> Ended
+where
+    S: Sink<Message> + Unpin,
+{
+    let bytes = codec::encode(msg);
+    let n = bytes.len() as u64;
+    match tokio::time::timeout(
+        state.limits.idle_timeout,
+        socket.send(Message::Binary(bytes.into())),
+    )
+    .await
+    {
+        Err(_) => fail(
+            CloseReason::SlowReader,
+            "the client did not read its messages within the idle timeout",
+        ),
+        // The connection is gone: nobody to tell.
+        Ok(Err(_)) => Ok(()),
+        Ok(Ok(())) => {
+            state.metrics.bytes_out_total.fetch_add(n, Relaxed);
+            stats.bytes_out.fetch_add(n, Relaxed);
+            Ok(())
+        }
+    }
+}

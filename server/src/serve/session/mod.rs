@@ -1,0 +1,178 @@
+//! One session over a WebSocket (DESIGN.md section 6): hello and welcome, coalesced poses,
+//! acknowledged deltas with a bounded window, the bandwidth budget, resume, and closes with a
+//! reason. Generic over any `Sink + Stream` of WebSocket messages, so that tests can drive it
+//! through channels.
+//!
+//! **Flow control.** The session computes a delta only while fewer than `max_in_flight` are
+//! unacknowledged. Poses that arrive meanwhile replace one another (the latest wins), so a
+//! client that stops reading holds at most `max_in_flight` deltas on the server, plus one pose.
+//! A send that cannot complete within the idle timeout closes the session as a slow reader.
+//!
+//! **Budget.** A token bucket of `budget` bytes per second (one second of burst) meters delta
+//! bodies. A delta may use the tokens there are; when the budgeted engine leaves splits for
+//! later, the session waits for tokens and sends the rest without waiting for a new pose.
+//!
+//! - [`io`]: receiving and sending one message, with the idle timeout and the close reasons.
+//! - [`flow`]: the loop after the welcome: coalescing, the window, the budget, the drain.
+
+mod flow;
+mod io;
+#[cfg(test)]
+mod tests;
+
+use super::limits::SessionPermit;
+use super::state::{AppState, SessionStats, Terrain};
+use super::stream::Stream as LodStream;
+use super::validate;
+use crate::lod::vertex::{LodParams, VertexEngine};
+use axum::extract::ws::{CloseFrame, Message};
+use flow::stream_loop;
+use futures_util::{Sink, SinkExt, Stream};
+use io::{Ended, fail, receive, send};
+use relief_proto::close::CloseReason;
+use relief_proto::cut::Cut;
+use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, ServerMsg, StreamKind, Welcome};
+use std::error::Error as StdError;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::sync::atomic::Ordering::Relaxed;
+use std::time::Duration;
+
+/// Runs a session to its end and closes the socket with the reason.
+pub async fn run<S, E>(mut socket: S, state: Arc<AppState>, peer: SocketAddr, permit: SessionPermit)
+where
+    S: Stream<Item = Result<Message, E>> + Sink<Message> + Unpin + Send,
+    E: StdError + Send + Sync + 'static,
+{
+    let (id, stats) = state.register(peer);
+    let ended = session(&mut socket, &state, id, &stats).await;
+    state.unregister(id);
+    if let Err((reason, detail)) = ended {
+        state.metrics.close(reason);
+        let text = reason.text(&detail);
+        if reason == CloseReason::Draining {
+            tracing::debug!(%peer, id, "session closed: {text}");
+        } else {
+            tracing::info!(%peer, id, "session closed: {text}");
+        }
+        let frame = Message::Close(Some(CloseFrame {
+            code: reason.code(),
+            reason: text.into(),
+        }));
+        let _ = tokio::time::timeout(Duration::from_secs(1), socket.send(frame)).await;
+    }
+    let _ = tokio::time::timeout(Duration::from_secs(1), socket.close()).await;
+    drop(permit);
+}
+
+/// The session's configuration, from the hello.
+struct Opening {
+    /// The LOD state, from the root or the resumed cut.
+    lod: LodStream,
+    /// Bytes per second for delta bodies, if budgeted.
+    budget: Option<u32>,
+}
+
+async fn open(
+    hello: Hello,
+    terrain: &Arc<Terrain>,
+    state: &AppState,
+) -> Result<(Opening, bool), (CloseReason, String)> {
+    if hello.version != PROTOCOL_VERSION {
+        return fail(
+            CloseReason::Version,
+            format!(
+                "protocol version {} is not supported; this server speaks {PROTOCOL_VERSION}",
+                hello.version
+            ),
+        );
+    }
+    let StreamKind::Vertex = hello.kind;
+    validate::params(&hello.lens, hello.tau, hello.budget)
+        .map_err(|e| (CloseReason::BadParams, e))?;
+    if let Some(r) = &hello.resume
+        && r.terrain_id != terrain.info.id
+    {
+        return fail(
+            CloseReason::BadSnapshot,
+            format!(
+                "the snapshot is for terrain {:016x}; this server holds {:016x}",
+                r.terrain_id, terrain.info.id
+            ),
+        );
+    }
+    let t = terrain.clone();
+    let max_nodes = state.limits.max_cut_nodes as usize;
+    let resumed = hello.resume.is_some();
+    let params = LodParams {
+        tau: hello.tau,
+        ..LodParams::default()
+    };
+    let lens = hello.lens.into();
+    let budget = hello.budget;
+    let built = tokio::task::spawn_blocking(move || {
+        let engine = VertexEngine::new(&t.store);
+        let shape = &engine.geometry().shape;
+        let cut = match &hello.resume {
+            Some(r) => r
+                .snapshot
+                .to_cut(shape, max_nodes)
+                .map_err(|e| e.to_string())?,
+            None => Cut::root(shape),
+        };
+        Ok::<_, String>(LodStream::new(
+            &engine,
+            &cut,
+            params,
+            lens,
+            budget.is_some(),
+            max_nodes,
+        ))
+    })
+    .await;
+    match built {
+        Ok(Ok(lod)) => Ok((Opening { lod, budget }, resumed)),
+        Ok(Err(e)) => fail(CloseReason::BadSnapshot, e),
+        Err(e) => fail(CloseReason::Internal, format!("session setup failed: {e}")),
+    }
+}
+
+async fn session<S, E>(
+    socket: &mut S,
+    state: &Arc<AppState>,
+    id: u64,
+    stats: &SessionStats,
+) -> Ended
+where
+    S: Stream<Item = Result<Message, E>> + Sink<Message> + Unpin + Send,
+    E: StdError + Send + Sync + 'static,
+{
+    let Some(terrain) = state.terrain() else {
+        return fail(CloseReason::NotReady, "the terrain is not ready yet");
+    };
+    let hello = match receive(socket, state).await? {
+        None => return Ok(()),
+        Some(ClientMsg::Hello(h)) => h,
+        Some(_) => return fail(CloseReason::Protocol, "the first message must be a hello"),
+    };
+    let (Opening { mut lod, budget }, resumed) = open(hello, &terrain, state).await?;
+    state.metrics.sessions_total.fetch_add(1, Relaxed);
+    if resumed {
+        state.metrics.resumes_total.fetch_add(1, Relaxed);
+    }
+    let welcome = ServerMsg::Welcome(Welcome {
+        version: PROTOCOL_VERSION,
+        session_id: id,
+        terrain: terrain.info.clone(),
+        resumed,
+        digest: lod.digest(),
+        max_in_flight: state.limits.max_in_flight,
+        max_message_bytes: state.limits.max_message_bytes,
+        idle_timeout_ms: state.limits.idle_timeout.as_millis().min(u32::MAX as u128) as u32,
+    });
+    send(socket, state, stats, &welcome).await?;
+    state.metrics.sessions_active.fetch_add(1, Relaxed);
+    let r = stream_loop(socket, state, stats, &terrain, &mut lod, budget).await;
+    state.metrics.sessions_active.fetch_sub(1, Relaxed);
+    r
+}
