@@ -88,6 +88,11 @@ impl<V: Copy + Default> Cut<V> {
         }
     }
 
+    /// The value of interior node `node`, for changing in place.
+    pub fn value_mut(&mut self, shape: &TreeShape, node: NodeId) -> Option<&mut V> {
+        self.interior.get_mut(&key(shape, node))
+    }
+
     /// The same cut with every value reset to `W::default()`.
     pub fn with_values<W: Copy + Default>(&self) -> Cut<W> {
         Cut {
@@ -157,14 +162,7 @@ impl<V: Copy + Default> Cut<V> {
         if shape.is_leaf(node) || !self.is_active(shape, node) {
             return Err(CutError::NotSplittable(node));
         }
-        let index = shape.index(node);
-        self.interior.insert(index as u32, V::default());
-        self.digest = self.digest.wrapping_sub(node_hash(index));
-        self.active -= 1;
-        for (_, c) in shape.children(node) {
-            self.digest = self.digest.wrapping_add(node_hash(shape.index(c)));
-            self.active += 1;
-        }
+        self.split_active(shape, node, V::default());
         Ok(())
     }
 
@@ -180,6 +178,33 @@ impl<V: Copy + Default> Cut<V> {
         {
             return Err(CutError::NotMergeable(node));
         }
+        self.merge_interior(shape, node);
+        Ok(())
+    }
+
+    /// Splits `node` with `value`, for a caller that knows `node` is an active inner node (the
+    /// engines, which have just looked): one table insert instead of [`Cut::split`]'s checks.
+    /// Called on anything else it corrupts the cut (checked in debug builds).
+    pub fn split_active(&mut self, shape: &TreeShape, node: NodeId, value: V) {
+        debug_assert!(shape.contains(node) && !shape.is_leaf(node) && self.is_active(shape, node));
+        let index = shape.index(node);
+        self.interior.insert(index as u32, value);
+        self.digest = self.digest.wrapping_sub(node_hash(index));
+        self.active -= 1;
+        for (_, c) in shape.children(node) {
+            self.digest = self.digest.wrapping_add(node_hash(shape.index(c)));
+            self.active += 1;
+        }
+    }
+
+    /// Merges `node`, for a caller that knows it is interior with only active children: one
+    /// table removal instead of [`Cut::merge`]'s checks. Called on anything else it corrupts
+    /// the cut (checked in debug builds).
+    pub fn merge_interior(&mut self, shape: &TreeShape, node: NodeId) {
+        debug_assert!(
+            self.is_interior(shape, node)
+                && shape.children(node).all(|(_, c)| !self.is_interior(shape, c))
+        );
         let index = shape.index(node);
         self.interior.remove(&(index as u32));
         self.digest = self.digest.wrapping_add(node_hash(index));
@@ -188,7 +213,6 @@ impl<V: Copy + Default> Cut<V> {
             self.digest = self.digest.wrapping_sub(node_hash(shape.index(c)));
             self.active -= 1;
         }
-        Ok(())
     }
 
     /// The interior nodes' dense indices, in no particular order.

@@ -304,7 +304,7 @@ impl VertexSession {
             stats.visited += 1;
             let e = view.error_of(&bv, err);
             if e < p.tau * p.merge_ratio {
-                let _ = self.cut.merge(shape, node);
+                self.cut.merge_interior(shape, node);
                 delta.merges.push(node);
                 if let Some(parent) = node.parent() {
                     self.file(engine, parent, 0.0, 0);
@@ -320,7 +320,7 @@ impl VertexSession {
             stats.visited += 1;
             let (cv, cerr) = engine.box_view(view, c);
             if view.error_of(&cv, cerr) > p.tau && !self.at_limit() {
-                let _ = self.cut.split(shape, c);
+                self.cut.split_active(shape, c, 0);
                 delta.splits.push(engine.split_payload(c));
                 // Refine as deep as this pose needs, as the full pass does.
                 self.process(engine, view, p, c, delta, stats);
