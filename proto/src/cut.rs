@@ -203,7 +203,9 @@ impl<V: Copy + Default> Cut<V> {
     pub fn merge_interior(&mut self, shape: &TreeShape, node: NodeId) {
         debug_assert!(
             self.is_interior(shape, node)
-                && shape.children(node).all(|(_, c)| !self.is_interior(shape, c))
+                && shape
+                    .children(node)
+                    .all(|(_, c)| !self.is_interior(shape, c))
         );
         let index = shape.index(node);
         self.interior.remove(&(index as u32));

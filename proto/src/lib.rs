@@ -13,6 +13,7 @@
 //! - [`mirror`]: the client-side cut with heights, rebuilt from deltas and checked by digest.
 //! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit;
 //!   [`close`]: the reasons a session ends; [`snapshot`]: a cut in one bit per inner node.
+//! - [`errors`]: one-line error reports for the command lines.
 //! - [`path`]: the standard and stress camera paths.
 //! - [`mesh`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
 //!   output-sensitive incremental builder the client uses.
@@ -21,6 +22,7 @@ pub mod close;
 pub mod codec;
 pub mod cut;
 pub mod delta;
+pub mod errors;
 pub mod haar;
 pub mod mesh;
 pub mod mirror;

@@ -128,7 +128,7 @@ pub fn main() -> std::process::ExitCode {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             // The whole chain on one line, no backtrace: these are input errors, not bugs.
-            eprintln!("error: {}", one_line(&e));
+            eprintln!("error: {}", relief_proto::errors::one_line(e.as_ref()));
             std::process::ExitCode::FAILURE
         }
     }
@@ -223,18 +223,4 @@ fn run() -> anyhow::Result<()> {
         }
     }
     Ok(())
-}
-
-/// The error and its causes on one line, each cause once: library errors often repeat their
-/// source in their own message, which `{:#}` would print twice.
-fn one_line(e: &anyhow::Error) -> String {
-    let mut line = e.to_string();
-    for cause in e.chain().skip(1) {
-        let c = cause.to_string();
-        if !line.contains(&c) {
-            line.push_str(": ");
-            line.push_str(&c);
-        }
-    }
-    line
 }
