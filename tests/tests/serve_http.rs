@@ -200,3 +200,26 @@ async fn metrics_terrain_heights_and_health() {
     assert!(sessions.as_array().unwrap().is_empty());
     server.stop().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_oversized_one_shot_is_refused_with_a_reason() {
+    let limits = Limits {
+        max_message_bytes: 1024,
+        ..Limits::default()
+    };
+    let server = TestServer::start(limits).await;
+    let e = request(
+        "POST",
+        &format!("{}/v1/lod", server.http()),
+        "application/octet-stream",
+        vec![0; 5000],
+    )
+    .await
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("400") && e.contains("larger than 1024 bytes"),
+        "{e}"
+    );
+    server.stop().await;
+}

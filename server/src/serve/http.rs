@@ -7,7 +7,7 @@ use super::validate;
 use crate::lod::diff::diff_delta;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use axum::Json;
-use axum::body::Bytes;
+use axum::body::Body;
 use axum::extract::State;
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -86,12 +86,22 @@ pub async fn terrain(State(state): State<Arc<AppState>>) -> Result<Response, Api
 
 /// `POST /v1/lod`: one stateless LOD step. The body is a [`LodRequest`], the answer a
 /// [`LodResponse`], both in the binary codec.
-pub async fn lod(State(state): State<Arc<AppState>>, body: Bytes) -> Result<Response, ApiError> {
+pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Response, ApiError> {
     let t = ready(&state)?;
     let bad = |e: String| {
         state.metrics.error(super::metrics::ErrorKind::BadRequest);
         ApiError::BadRequest(e)
     };
+    // Read the body only when a computation slot is free.
+    let _slot = state
+        .one_shots
+        .acquire()
+        .await
+        .map_err(|_| ApiError::NotReady)?;
+    let max = state.limits.max_message_bytes as usize;
+    let body = axum::body::to_bytes(body, max)
+        .await
+        .map_err(|_| bad(format!("the body is unreadable or larger than {max} bytes")))?;
     let req: LodRequest = codec::decode(&body, state.limits.max_message_bytes as usize)
         .map_err(|e| bad(e.to_string()))?;
     if req.version != PROTOCOL_VERSION {

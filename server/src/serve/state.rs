@@ -102,6 +102,9 @@ pub struct AppState {
     next_id: AtomicU64,
     /// Turns true when the server starts draining: sessions tell their clients to reconnect.
     pub draining: watch::Receiver<bool>,
+    /// One-shot computations at once: waiting requests hold no body in memory (it stays in
+    /// the socket until their turn), so a flood of them cannot grow the server.
+    pub one_shots: tokio::sync::Semaphore,
 }
 
 impl AppState {
@@ -122,6 +125,9 @@ impl AppState {
                     << 8,
             ),
             draining,
+            one_shots: tokio::sync::Semaphore::new(
+                2 * std::thread::available_parallelism().map_or(2, |n| n.get()),
+            ),
         }
     }
 
