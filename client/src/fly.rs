@@ -60,6 +60,9 @@ pub struct FlyReport {
     pub triangles_final: usize,
     /// Active nodes at the end.
     pub active_final: u64,
+    /// The server's mean time to compute an update during the flight, milliseconds (from its
+    /// `/metrics` histogram; includes any other session's updates on a shared server).
+    pub server_update_ms_mean: f64,
 }
 
 /// A flight that could not be flown.
@@ -78,6 +81,8 @@ pub enum FlyError {
 
 /// Flies the path and reports.
 pub async fn fly(opts: &FlyOptions) -> Result<FlyReport, FlyError> {
+    let base = http::base_of(&opts.session.url)?;
+    let before = update_totals(&base).await?;
     let mut session = Session::connect(opts.session.clone()).await?;
     let extent = flight::extent(session.terrain());
     let spec = flight::PathSpec::Kind(opts.path);
@@ -91,6 +96,8 @@ pub async fn fly(opts: &FlyOptions) -> Result<FlyReport, FlyError> {
     let mut later = log.latencies_ms.clone();
     later.sort_by(f64::total_cmp);
     let c = session.counters();
+    let after = update_totals(&base).await?;
+    let updates = after.1 - before.1;
     let report = FlyReport {
         poses: log.poses,
         deltas: c.deltas,
@@ -108,9 +115,25 @@ pub async fn fly(opts: &FlyOptions) -> Result<FlyReport, FlyError> {
         reconnects: c.reconnects,
         triangles_final: session.mesh().triangle_count(),
         active_final: session.mirror().cut().active_count(),
+        server_update_ms_mean: if updates > 0.0 {
+            (after.0 - before.0) * 1e3 / updates
+        } else {
+            0.0
+        },
     };
     session.close().await;
     Ok(report)
+}
+
+/// The server's update-time sum (seconds) and count, from `/metrics`.
+async fn update_totals(base: &str) -> Result<(f64, f64), FlyError> {
+    let body = http::request("GET", &format!("{base}/metrics"), "text/plain", Vec::new()).await?;
+    let m = crate::load::parse_metrics(&String::from_utf8_lossy(&body));
+    let get = |k: &str| m.get(k).copied().unwrap_or(0.0);
+    Ok((
+        get("relief_update_seconds_sum"),
+        get("relief_update_seconds_count"),
+    ))
 }
 
 /// The path's pose rate.
