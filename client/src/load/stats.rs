@@ -303,3 +303,125 @@ pub fn knee(stages: &[StageReport], p99_ms: f64) -> Option<(usize, String)> {
         }
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::flight::FlightLog;
+    use crate::load::LoadPath;
+    use crate::session::Counters;
+    use std::time::Duration;
+
+    fn opts(sessions: usize) -> LoadOptions {
+        LoadOptions {
+            url: "ws://127.0.0.1:1/v1/stream".into(),
+            sessions,
+            duration: Duration::from_secs(4),
+            ramp: Duration::from_secs(1),
+            path: LoadPath::Standard,
+            seed: 1,
+            tau: 1.0,
+            budget: None,
+            rate_hz: 10.0,
+            mesh: false,
+            progress: false,
+        }
+    }
+
+    fn outcome(latencies: Vec<f64>, bytes: Vec<u64>, error: Option<&str>) -> SessionOutcome {
+        let total: u64 = bytes.iter().sum();
+        SessionOutcome {
+            log: FlightLog {
+                poses: latencies.len() + 1,
+                first_latency_ms: Some(100.0),
+                latencies_ms: latencies,
+                bytes_per_second: bytes,
+                first_delta_bytes: 10,
+                changes: 50,
+            },
+            counters: Counters {
+                deltas: 10,
+                bytes_in: total,
+                desyncs: 0,
+                reconnects: 1,
+                resumes: 1,
+            },
+            error: error.map(str::to_string),
+            flown_s: 5.0,
+        }
+    }
+
+    fn sample(t_s: f64, cpu_s: f64, rss: f64, updates: f64, bad: f64) -> ServerSample {
+        ServerSample {
+            t_s,
+            cpu_s,
+            rss_bytes: rss,
+            sessions: 2.0,
+            updates,
+            bytes_out: 0.0,
+            errors: bad,
+            errors_by_kind: [("bad_camera".to_string(), bad)].into_iter().collect(),
+        }
+    }
+
+    #[test]
+    fn figures_follow_from_the_flights_and_samples() {
+        let outcomes = vec![
+            outcome(
+                (1..=100).map(f64::from).collect(),
+                vec![100, 200, 300, 400, 500],
+                None,
+            ),
+            outcome(vec![1000.0], vec![0, 0, 100, 100, 100], Some("boom")),
+        ];
+        let samples = vec![
+            sample(0.0, 10.0, 1e6, 0.0, 0.0),
+            sample(2.5, 11.0, 3e6, 10.0, 0.0),
+            sample(5.0, 12.0, 2e6, 20.0, 3.0),
+        ];
+        let r = summarise(&opts(2), &outcomes, &samples, 1.0);
+        assert_eq!((r.sessions_ok, r.errors), (1, 1));
+        assert_eq!(r.error_samples, vec!["boom".to_string()]);
+        assert_eq!((r.deltas, r.reconnects, r.poses), (20, 2, 103));
+        assert_eq!(r.bytes_client, 1500 + 300);
+        // Whole seconds 1..5 after a 1 s ramp: 200, 400, 500, 600.
+        assert_eq!(r.aggregate_bytes_per_s.mean, 425.0);
+        assert_eq!(r.aggregate_bytes_per_s.max, 600.0);
+        // 101 samples of 1..=100 ms and 1000 ms (first poses excluded).
+        assert_eq!(r.latency_ms.samples, 101);
+        assert!((r.latency_ms.p50 - 51.0).abs() < 0.1, "{:?}", r.latency_ms);
+        assert!(
+            (r.latency_ms.max - 1000.0).abs() < 1.0,
+            "{:?}",
+            r.latency_ms
+        );
+        assert_eq!(r.first_latency_ms.p50, 100.0);
+        // Server: 2 CPU seconds over 20 updates; peak RSS 3 MB over a 1 MB start, per session.
+        assert!((r.server.cpu_ms_per_update - 100.0).abs() < 1e-9);
+        assert!((r.server.rss_per_session_bytes - 1e6).abs() < 1e-6);
+        assert_eq!(r.server.errors_by_kind.get("bad_camera"), Some(&3.0));
+        assert_eq!(r.timeline.len(), 5);
+    }
+
+    #[test]
+    fn the_knee_is_the_first_stage_that_breaks_away() {
+        let mut a = StageReport {
+            sessions: 10,
+            ..StageReport::default()
+        };
+        a.latency_ms.p99 = 20.0;
+        let mut b = a.clone();
+        b.sessions = 100;
+        b.latency_ms.p99 = 80.0;
+        let mut c = a.clone();
+        c.sessions = 1000;
+        c.errors = 3;
+        assert_eq!(knee(&[a.clone()], 50.0), None);
+        let k = knee(&[a.clone(), b, c.clone()], 50.0).unwrap();
+        assert_eq!(k.0, 100);
+        assert!(k.1.contains("80.0 ms"));
+        let k = knee(&[a, c], 50.0).unwrap();
+        assert_eq!(k.0, 1000);
+        assert!(k.1.contains("3 client errors"));
+    }
+}
