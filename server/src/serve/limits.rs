@@ -99,11 +99,15 @@ pub struct ConnectionRate {
     rate: f64,
     /// Bucket size.
     burst: f64,
-    /// Tokens and last refill per address.
-    buckets: Mutex<HashMap<IpAddr, (f64, Instant)>>,
+    /// Tokens and last refill per address, and the table size at which full buckets are next
+    /// forgotten (a full bucket is the same as no bucket).
+    buckets: Mutex<(Buckets, usize)>,
 }
 
-/// Buckets kept before full ones are forgotten (a full bucket is the same as no bucket).
+/// Tokens and the last refill, per address.
+type Buckets = HashMap<IpAddr, (f64, Instant)>;
+
+/// The smallest table size that triggers forgetting full buckets.
 const PRUNE_AT: usize = 4096;
 
 impl ConnectionRate {
@@ -112,18 +116,22 @@ impl ConnectionRate {
         ConnectionRate {
             rate,
             burst: (2.0 * rate).max(1.0),
-            buckets: Mutex::default(),
+            buckets: Mutex::new((HashMap::new(), PRUNE_AT)),
         }
     }
 
     /// Takes a token for a connection from `ip` at `now`; false when the address is over rate.
     pub fn allow(&self, ip: IpAddr, now: Instant) -> bool {
-        let mut b = self.buckets.lock().unwrap_or_else(|e| e.into_inner());
-        if b.len() >= PRUNE_AT {
+        let mut guard = self.buckets.lock().unwrap_or_else(|e| e.into_inner());
+        let (b, prune_at) = &mut *guard;
+        if b.len() >= *prune_at {
             let (rate, burst) = (self.rate, self.burst);
             b.retain(|_, (t, last)| {
                 *t + now.saturating_duration_since(*last).as_secs_f64() * rate < burst
             });
+            // Many busy addresses: wait for the table to double before the next sweep, so that
+            // sweeps cost O(1) per connection on average instead of one each.
+            *prune_at = (2 * b.len()).max(PRUNE_AT);
         }
         let (tokens, last) = b.entry(ip).or_insert((self.burst, now));
         *tokens = (*tokens + now.saturating_duration_since(*last).as_secs_f64() * self.rate)
@@ -170,5 +178,18 @@ mod tests {
         assert_eq!((0..100).filter(|_| r.allow(ip, t1)).count(), 5);
         // Another address is unaffected.
         assert!(r.allow("10.0.0.2".parse().unwrap(), t1));
+    }
+
+    #[test]
+    fn full_buckets_are_forgotten_and_busy_ones_kept() {
+        let r = ConnectionRate::new(1.0);
+        let t0 = Instant::now();
+        for i in 0..PRUNE_AT as u32 {
+            assert!(r.allow(IpAddr::from(i.to_be_bytes()), t0));
+        }
+        // Ten seconds on, every bucket has refilled: the sweep empties the table.
+        let later = t0 + Duration::from_secs(10);
+        assert!(r.allow("10.9.9.9".parse().unwrap(), later));
+        assert_eq!(r.buckets.lock().unwrap().0.len(), 1);
     }
 }

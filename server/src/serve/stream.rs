@@ -13,7 +13,6 @@ use crate::lod::session::VertexSession;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;
-use relief_proto::snapshot::Snapshot;
 use relief_proto::view::{Camera, Lens, ViewState};
 
 /// How a session's cut is kept.
@@ -148,15 +147,6 @@ impl Stream {
         match &self.lod {
             Lod::Coherent(s) => s.memory_bytes(),
             Lod::Budgeted(c) => c.memory_bytes(),
-        }
-    }
-
-    /// The current cut as a snapshot.
-    pub fn snapshot(&self, engine: &VertexEngine<'_>) -> Snapshot {
-        let shape = &engine.geometry().shape;
-        match &self.lod {
-            Lod::Coherent(s) => Snapshot::of(shape, &s.cut()),
-            Lod::Budgeted(c) => Snapshot::of(shape, c),
         }
     }
 }
