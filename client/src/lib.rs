@@ -7,15 +7,19 @@
 //! - [`fly`]: `relief-client fly`: one flight along a camera path, with its figures.
 //! - [`load`]: `relief-client load`: many sessions at once, with reports, plots and sweeps.
 //! - [`plot`]: PNG line charts (embedded bitmap font, nice ticks, legend) for load reports.
+//! - [`render`]: the wgpu renderer: GPU buffers that follow the mirror, the geomorph and terrain
+//!   passes, offscreen shots and the renderer's benchmark.
+//! - [`viewer`]: `relief-client view`: a window with a fly camera over the streamed terrain.
 //!
-//! The cut mirror and the fan builder themselves live in `relief-proto` (`mirror`, `mesh`),
-//! where the server's benchmarks replay deltas with them too. The wgpu renderer arrives with its
-//! own issue.
+//! The cut mirror, the fan builder and the geomorph rule themselves live in `relief-proto`
+//! (`mirror`, `mesh`), where the server's benchmarks replay deltas with them too.
 pub mod flight;
 pub mod fly;
 pub mod http;
 pub mod load;
 pub mod plot;
+pub mod render;
 pub mod session;
+pub mod viewer;
 
 pub use session::{Session, SessionConfig};

@@ -5,7 +5,11 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use relief_client::fly::{self, FlyOptions};
 use relief_client::load::{self, LoadOptions, LoadPath};
+use relief_client::render::bench::{self, RenderBenchOptions};
+use relief_client::render::shot::{self, ShotOptions, ShotPose};
 use relief_client::session::SessionConfig;
+use relief_client::viewer::{self, ViewerOptions};
+use relief_proto::view::Lens;
 use relief_proto::path::PathKind;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -56,6 +60,53 @@ impl StreamArgs {
     }
 }
 
+/// What every drawing command asks for.
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// The stream's URL.
+    #[arg(
+        long,
+        env = "RELIEF_SERVER",
+        default_value = "ws://127.0.0.1:8080/v1/stream"
+    )]
+    server: String,
+    /// Screen-space error threshold in pixels.
+    #[arg(long, default_value_t = 1.0)]
+    tau: f32,
+    /// Image or window size, WxH.
+    #[arg(long, default_value = "1280x720", value_parser = shot::parse_size)]
+    size: (u32, u32),
+    /// Vertical field of view, degrees.
+    #[arg(long, default_value_t = 60.0)]
+    fov: f32,
+    /// Draw triangle edges over the shading.
+    #[arg(long)]
+    wireframe: bool,
+}
+
+impl ViewArgs {
+    fn session(&self) -> anyhow::Result<SessionConfig> {
+        anyhow::ensure!(
+            self.tau.is_finite() && self.tau > 0.0,
+            "--tau must be a positive number of pixels"
+        );
+        anyhow::ensure!(
+            self.fov.is_finite() && (1.0..=170.0).contains(&self.fov),
+            "--fov must be 1 to 170 degrees"
+        );
+        Ok(SessionConfig {
+            tau: self.tau,
+            lens: Lens {
+                width: self.size.0,
+                height: self.size.1,
+                fov_y_deg: self.fov,
+                near: 1.0,
+            },
+            ..SessionConfig::new(&self.server)
+        })
+    }
+}
+
 #[derive(Subcommand)]
 enum Command {
     /// Fly one session along a camera path and print deltas, bandwidth, latency and desyncs.
@@ -68,6 +119,59 @@ enum Command {
         /// Print one JSON object instead of an indented one.
         #[arg(long)]
         json: bool,
+    },
+    /// Stream the terrain for one camera and draw it offscreen into a PNG (no window needed; works
+    /// on Mesa's software Vulkan).
+    Shot {
+        #[command(flatten)]
+        view: ViewArgs,
+        /// A fixed camera: x,y,z,yaw,pitch (metres east and north of the terrain's south-west
+        /// sample, metres of height, degrees counter-clockwise from east, degrees of elevation,
+        /// negative looks down).
+        #[arg(long, conflicts_with_all = ["path", "frame"], allow_hyphen_values = true)]
+        camera: Option<String>,
+        /// A path to fly from its start up to --frame: `standard` or `stress`.
+        #[arg(long, requires = "frame")]
+        path: Option<PathKind>,
+        /// The path's pose to draw (10 poses a second); the frame is drawn one pose interval
+        /// later, with that pose's splits still growing.
+        #[arg(long, requires = "path")]
+        frame: Option<usize>,
+        /// Where to write the PNG.
+        #[arg(short = 'o', long = "out", default_value = "shot.png")]
+        out: PathBuf,
+        /// Background colour: #rrggbb or r,g,b.
+        #[arg(long, default_value = "#9eb3cc")]
+        background: String,
+    },
+    /// Measure the renderer along a path, offscreen: the client's cost per pose (delta apply,
+    /// fan rebuild, record update, upload), median and p99 in microseconds, and frames per
+    /// second.
+    RenderBench {
+        #[command(flatten)]
+        view: ViewArgs,
+        /// Which path: `standard` or `stress`.
+        #[arg(long, default_value = "standard")]
+        path: PathKind,
+        /// Fly only the path's first this many poses (0: all 600).
+        #[arg(long, default_value_t = 0)]
+        poses: usize,
+        /// Print one JSON object instead of an indented one.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Open a window and fly over the streamed terrain. WASD/arrows move, the mouse (held left
+    /// button) looks, Q/E or PageDown/PageUp go down/up, Shift is 5x faster, Ctrl 5x slower,
+    /// G toggles following the ground, F toggles the wireframe, +/- change tau, Esc quits.
+    View {
+        #[command(flatten)]
+        view: ViewArgs,
+        /// Camera poses sent to the server per second.
+        #[arg(long, default_value_t = 10.0)]
+        rate: f64,
+        /// Close by itself after this many seconds (for scripted checks) [default: never].
+        #[arg(long)]
+        exit_after: Option<f64>,
     },
     /// Run many sessions at once against a server and report bandwidth, latency, errors and the
     /// server's CPU and memory; with --sweep, run stages of growing size and find the knee.
@@ -133,6 +237,73 @@ fn run() -> anyhow::Result<()> {
         .enable_all()
         .build()?;
     match Cli::parse().command {
+        Command::Shot {
+            view,
+            camera,
+            path,
+            frame,
+            out,
+            background,
+        } => {
+            let pose = match (camera, path, frame) {
+                (Some(c), _, _) => ShotPose::Camera(shot::parse_camera(&c).map_err(anyhow::Error::msg)?),
+                (None, Some(kind), Some(frame)) => ShotPose::Path { kind, frame },
+                _ => anyhow::bail!("give either --camera x,y,z,yaw,pitch or --path P --frame K"),
+            };
+            let opts = ShotOptions {
+                session: view.session()?,
+                pose,
+                wireframe: view.wireframe,
+                background: shot::parse_colour(&background).map_err(anyhow::Error::msg)?,
+            };
+            let (img, report) = rt.block_on(shot::shot(&opts))?;
+            img.save(&out)
+                .with_context(|| format!("cannot write {}", out.display()))?;
+            eprintln!(
+                "wrote {} ({}x{}, {} triangles, adapter {})",
+                out.display(),
+                report.size.0,
+                report.size.1,
+                report.triangles,
+                report.adapter
+            );
+        }
+        Command::RenderBench {
+            view,
+            path,
+            poses,
+            json,
+        } => {
+            let opts = RenderBenchOptions {
+                session: view.session()?,
+                path,
+                poses,
+            };
+            let report = rt.block_on(bench::render_bench(&opts))?;
+            if json {
+                println!("{}", serde_json::to_string(&report)?);
+            } else {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            }
+        }
+        Command::View {
+            view,
+            rate,
+            exit_after,
+        } => {
+            anyhow::ensure!(
+                rate.is_finite() && rate > 0.0 && rate <= 120.0,
+                "--rate must be above 0 and at most 120 poses a second"
+            );
+            let opts = ViewerOptions {
+                session: view.session()?,
+                rate_hz: rate,
+                wireframe: view.wireframe,
+                exit_after: exit_after.map(Duration::from_secs_f64),
+            };
+            drop(rt);
+            viewer::run(opts)?;
+        }
         Command::Fly { stream, path, json } => {
             let opts = FlyOptions {
                 session: stream.session()?,

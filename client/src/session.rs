@@ -17,6 +17,7 @@ use relief_proto::msg::{
 };
 use relief_proto::snapshot::Snapshot;
 use relief_proto::terrain::TerrainGeometry;
+use relief_proto::tree::NodeId;
 use relief_proto::view::{Camera, Lens};
 use std::time::{Duration, Instant};
 use tokio::net::TcpStream;
@@ -46,6 +47,9 @@ pub struct SessionConfig {
     /// Keep the fan mesh up to date (a viewer needs it; a load generator may skip it, and
     /// [`Session::mesh`] then stays at the root's).
     pub mesh: bool,
+    /// Record every split and merge for [`Session::take_changes`] (a renderer mirrors them into
+    /// GPU buffers; nobody else should pay for the list).
+    pub record_changes: bool,
 }
 
 impl SessionConfig {
@@ -60,6 +64,7 @@ impl SessionConfig {
             backoff_max: Duration::from_secs(2),
             reconnect_deadline: Duration::from_secs(30),
             mesh: true,
+            record_changes: false,
         }
     }
 }
@@ -101,6 +106,9 @@ pub struct Applied {
     pub bytes: usize,
     /// Merges and splits applied.
     pub changes: usize,
+    /// Time spent decoding the delta, applying it to the mirror and updating the fans,
+    /// microseconds (not waiting for it).
+    pub apply_us: f64,
 }
 
 /// Counters over the session's life.
@@ -117,6 +125,15 @@ pub struct Counters {
     pub reconnects: u64,
     /// Reconnections the server resumed from the snapshot.
     pub resumes: u64,
+}
+
+/// One split or merge the mirror applied, in the order it was applied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Change {
+    /// The node split: its children are now held.
+    Split(NodeId),
+    /// The node merged: its children are gone.
+    Merge(NodeId),
 }
 
 /// A live session: the connection, the mirror and its mesh.
@@ -143,6 +160,10 @@ pub struct Session {
     idle_timeout: Duration,
     /// Counters.
     counters: Counters,
+    /// Changes applied since the last [`Session::take_changes`] (with `record_changes`).
+    changes: Vec<Change>,
+    /// Bumped whenever the mirror starts again from the root, so that a renderer rebuilds.
+    generation: u64,
 }
 
 fn decode(bytes: &[u8]) -> Result<ServerMsg, ClientError> {
@@ -244,6 +265,8 @@ impl Session {
                 bytes_in: bytes as u64,
                 ..Counters::default()
             },
+            changes: Vec::new(),
+            generation: 0,
         })
     }
 
@@ -306,6 +329,8 @@ impl Session {
                 .map_err(|e| ClientError::Protocol(format!("bad terrain in welcome: {e}")))?;
             self.mirror = Mirror::new(&self.geom, self.info.root_z);
             self.mesh = FanMesh::new(&self.geom.shape, self.mirror.cut());
+            self.changes.clear();
+            self.generation += 1;
         }
         self.counters.bytes_in += bytes as u64;
         self.max_in_flight = w.max_in_flight;
@@ -389,6 +414,7 @@ impl Session {
                     return Err(ClientError::Protocol("a second welcome".into()));
                 }
             };
+            let started = Instant::now();
             let delta = d
                 .delta
                 .unpack(&self.geom.shape, self.geom.z_quantum)
@@ -396,9 +422,21 @@ impl Session {
             let shape = &self.geom.shape;
             let mesh = &mut self.mesh;
             let build = self.config.mesh;
+            let record = self.config.record_changes;
+            let changes = &mut self.changes;
+            let mut merges_left = delta.merges.len();
             let applied = self.mirror.apply(&self.geom, &delta, |c, n| {
                 if build {
                     mesh.update_around(shape, c, n);
+                }
+                if record {
+                    // The mirror applies every merge before any split.
+                    changes.push(if merges_left > 0 {
+                        merges_left -= 1;
+                        Change::Merge(n)
+                    } else {
+                        Change::Split(n)
+                    });
                 }
             });
             if applied.is_err() {
@@ -407,6 +445,7 @@ impl Session {
                 self.reconnect(true).await?;
                 continue;
             }
+            let apply_us = started.elapsed().as_secs_f64() * 1e6;
             self.counters.deltas += 1;
             self.send(&ClientMsg::Ack { seq: d.delta.seq }).await;
             return Ok(Applied {
@@ -415,6 +454,7 @@ impl Session {
                 complete: d.complete,
                 bytes,
                 changes: delta.merges.len() + delta.splits.len(),
+                apply_us,
             });
         }
     }
@@ -444,6 +484,16 @@ impl Session {
         }
     }
 
+    /// The stream's URL.
+    pub fn url(&self) -> &str {
+        &self.config.url
+    }
+
+    /// The session's screen-space error threshold, pixels.
+    pub fn tau(&self) -> f32 {
+        self.config.tau
+    }
+
     /// The terrain.
     pub fn terrain(&self) -> &TerrainInfo {
         &self.info
@@ -464,6 +514,12 @@ impl Session {
         &self.mesh
     }
 
+    /// The geometry, the mirror and the mesh at once, for renderers that follow the mesh's
+    /// dirty cells while reading the mirror.
+    pub fn parts_mut(&mut self) -> (&TerrainGeometry, &Mirror, &mut FanMesh) {
+        (&self.geom, &self.mirror, &mut self.mesh)
+    }
+
     /// Mutable mesh access, for renderers that take its dirty cells.
     pub fn mesh_mut(&mut self) -> &mut FanMesh {
         &mut self.mesh
@@ -472,6 +528,18 @@ impl Session {
     /// The server's window of unacknowledged deltas.
     pub fn max_in_flight(&self) -> u32 {
         self.max_in_flight
+    }
+
+    /// The splits and merges applied since the last call, in order (empty unless the config
+    /// asks to record them).
+    pub fn take_changes(&mut self) -> Vec<Change> {
+        std::mem::take(&mut self.changes)
+    }
+
+    /// How many times the mirror has started again from the root: when this moves, what
+    /// [`Session::take_changes`] returned before no longer applies; rebuild from the mirror.
+    pub fn generation(&self) -> u64 {
+        self.generation
     }
 
     /// Counters over the session's life.

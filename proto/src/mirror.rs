@@ -74,6 +74,11 @@ impl Mirror {
         self.nodes.get(&geom.shape.index(node)).copied()
     }
 
+    /// Every node the mirror holds (active and interior), by dense index, in no set order.
+    pub fn held(&self) -> impl Iterator<Item = (u64, NodeData)> + '_ {
+        self.nodes.iter().map(|(&k, &v)| (k, v))
+    }
+
     /// Applies `delta` and checks its digest: first the merges deepest first (in reverse of their
     /// canonical order, so that when a node and its child both merge the child goes first and
     /// every merging node's children are active), then the splits in order (parents first).

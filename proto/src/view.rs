@@ -196,6 +196,12 @@ impl ViewState {
         self.off_axis
     }
 
+    /// Inward unit normals of the four side planes through the eye, then the near plane's (whose
+    /// offset from the eye is [`ViewState::near`]; the side planes pass through the eye).
+    pub fn planes(&self) -> [Vec3; 5] {
+        self.planes
+    }
+
     /// The view basis: forward, right, up (unit vectors).
     pub fn basis(&self) -> [Vec3; 3] {
         let right = self.forward.cross(Vec3::Z).normalize_or(Vec3::X);

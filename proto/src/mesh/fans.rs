@@ -80,6 +80,11 @@ impl FanMesh {
         self.cells.get(&cell).copied().unwrap_or([None, None])
     }
 
+    /// Every non-empty junction cell, in no set order.
+    pub fn cells(&self) -> Vec<(u32, u32)> {
+        self.cells.keys().copied().collect()
+    }
+
     /// The cells whose triangles changed since the last call, each once.
     pub fn take_dirty(&mut self) -> Vec<(u32, u32)> {
         let mut d = std::mem::take(&mut self.dirty);

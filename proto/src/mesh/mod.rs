@@ -12,13 +12,16 @@
 //! - [`oracle`]: the rule applied to every cell, the test oracle.
 //! - [`fans`]: the output-sensitive incremental builder the client uses.
 //! - [`check`]: crack, fold and manifold checks of a triangle list.
+//! - [`morph`]: where each active node is drawn: the geomorph down the chain of ancestors.
 
 pub mod check;
 pub mod fans;
+pub mod morph;
 pub mod oracle;
 
 pub use check::{MeshReport, check_mesh};
 pub use fans::FanMesh;
+pub use morph::{MorphRule, drawn_position};
 pub use oracle::oracle;
 
 use crate::tree::NodeId;

@@ -16,14 +16,13 @@ use crate::preprocess;
 use crate::store::Store;
 use glam::Vec3;
 use relief_proto::codec;
-use relief_proto::haar::error_value;
-use relief_proto::mesh::{self, FanMesh};
+use relief_proto::mesh::{self, FanMesh, MorphRule, drawn_position};
 use relief_proto::mirror::Mirror;
 use relief_proto::msg::{ServerMsg, SessionDelta, WireDelta};
 use relief_proto::path::{PATH_HZ, PathKind, camera_path};
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
-use relief_proto::view::{Lens, ViewState, morph_alpha};
+use relief_proto::view::{Lens, ViewState};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -380,8 +379,9 @@ fn unwire(bytes: &[u8], geom: &TerrainGeometry) -> anyhow::Result<relief_proto::
     }
 }
 
-/// The mirror's triangles in world space as a client draws them: every active node whose parent
-/// is still within its geomorph range slides towards the parent (paper 000, section 3.6).
+/// The mirror's triangles in world space as a client draws them, geomorphs applied down the
+/// chain of ancestors (paper 000, section 3.6; [`mesh::morph`]). Splits are taken as old, so
+/// only the error-driven alpha applies.
 fn drawn_triangles(
     mesh: &FanMesh,
     mirror: &Mirror,
@@ -389,25 +389,11 @@ fn drawn_triangles(
     view: &ViewState,
     p: &LodParams,
 ) -> Vec<[Vec3; 3]> {
-    let pos = |n: NodeId| -> Vec3 {
-        let Some(d) = mirror.node(geom, n) else {
-            return Vec3::ZERO;
-        };
-        let own = geom.world_pos(n, d.z);
-        let Some(parent) = n.parent() else {
-            return own;
-        };
-        let Some(pd) = mirror.node(geom, parent) else {
-            return own;
-        };
-        let b = geom.node_box(parent, pd.z, pd.err_code);
-        let e = view.screen_error(&b, error_value(pd.err_code));
-        let a = if std::env::var("NOMORPH").is_ok() {
-            1.0
-        } else {
-            morph_alpha(e, p.tau, p.lambda)
-        };
-        own * a + geom.world_pos(parent, pd.z) * (1.0 - a)
+    let rule = MorphRule {
+        tau: p.tau,
+        lambda: p.lambda,
+        duration: 0.0,
     };
+    let pos = |n: NodeId| drawn_position(geom, mirror, view, &rule, n, |_| f32::INFINITY);
     mesh.triangles().iter().map(|t| t.0.map(pos)).collect()
 }

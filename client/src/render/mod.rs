@@ -1,0 +1,40 @@
+//! The wgpu renderer: the streamed cut drawn as the paper's fans with GPU geomorphs (paper 000,
+//! sections 3.5-3.6), in a window or offscreen.
+//!
+//! - [`scene`]: node and triangle records in slot pools, kept in step with the mirror one split
+//!   or merge at a time; dirty pages for upload. Pure CPU.
+//! - [`follow`]: a scene that follows a [`crate::Session`].
+//! - [`gpu`]: instance, adapter, device and queue, headless or for a window.
+//! - [`renderer`]: GPU buffers, the geomorph compute pass and the terrain render pass
+//!   (`terrain.wgsl`).
+//! - [`offscreen`]: a target without a window, read back into an image.
+//! - [`shot`]: `relief-client shot`: one frame to a PNG.
+//! - [`bench`]: `relief-client render-bench`: the client's cost per delta and frame rate.
+
+pub mod bench;
+pub mod follow;
+pub mod gpu;
+pub mod offscreen;
+pub mod renderer;
+pub mod scene;
+pub mod shot;
+
+pub use follow::Follower;
+pub use gpu::{Gpu, RenderError};
+pub use offscreen::Offscreen;
+pub use renderer::{FrameParams, Renderer};
+pub use scene::Scene;
+
+use relief_proto::terrain::TerrainGeometry;
+
+/// The fog distance that suits a terrain: its larger side.
+pub fn fog_distance(geom: &TerrainGeometry) -> f32 {
+    let w = geom.shape.width() as f32 * geom.frame.dx;
+    let h = geom.shape.height() as f32 * geom.frame.dy;
+    w.max(h)
+}
+
+/// The heights a colour ramp spans: the terrain's lowest to highest, metres.
+pub fn height_range(info: &relief_proto::msg::TerrainInfo) -> (f32, f32) {
+    (info.height_range[0], info.height_range[1])
+}

@@ -1,0 +1,88 @@
+//! A render target without a window, read back into an image (for `shot`, tests and timing).
+
+use super::gpu::{Gpu, RenderError};
+use super::renderer::map_read;
+
+/// The offscreen colour format: plain 8-bit RGBA, so that the stored bytes are exactly what
+/// the shader wrote (it encodes sRGB itself) and the clear colour's bytes come back unchanged.
+pub const FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+
+/// A colour texture to draw into.
+pub struct Offscreen {
+    /// The texture.
+    texture: wgpu::Texture,
+    /// Its view, the render target.
+    pub view: wgpu::TextureView,
+    /// Width and height, pixels.
+    pub size: (u32, u32),
+}
+
+impl Offscreen {
+    /// A `width` x `height` target.
+    pub fn new(gpu: &Gpu, width: u32, height: u32) -> Offscreen {
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("relief offscreen"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        Offscreen {
+            texture,
+            view,
+            size: (width, height),
+        }
+    }
+
+    /// The pixels drawn so far (waits for the GPU).
+    pub fn read(&self, gpu: &Gpu) -> Result<image::RgbaImage, RenderError> {
+        let (w, h) = self.size;
+        let row = (w * 4).div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT)
+            * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("relief frame readback"),
+            size: u64::from(row * h),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(row),
+                    rows_per_image: Some(h),
+                },
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+        gpu.queue.submit([enc.finish()]);
+        let bytes = map_read(gpu, &staging)?;
+        let mut pixels = Vec::with_capacity((w * h * 4) as usize);
+        for r in 0..h as usize {
+            let at = r * row as usize;
+            pixels.extend_from_slice(&bytes[at..at + w as usize * 4]);
+        }
+        image::RgbaImage::from_raw(w, h, pixels)
+            .ok_or_else(|| RenderError::Readback("frame size mismatch".into()))
+    }
+}

@@ -1,0 +1,481 @@
+//! The GPU side: buffers mirroring a [`Scene`]'s pools, the geomorph compute pass and the
+//! terrain render pass (shaders in `terrain.wgsl`).
+//!
+//! Each frame runs two passes. The compute pass evaluates every node's drawn position for this
+//! frame's camera (the geomorph down the chain of ancestors, paper 000, section 3.6); the render
+//! pass pulls triangles' node slots from the cell records and their positions from the compute
+//! pass's output. Nothing per vertex is uploaded per frame: only the uniform block, and after a
+//! delta the pages of records it changed.
+
+use super::gpu::{Gpu, RenderError};
+use super::scene::{CELL_WORDS, Pool, Scene};
+use glam::{Mat4, Vec3, Vec4};
+use relief_proto::mesh::MorphRule;
+use relief_proto::view::{Camera, Lens, ViewState};
+use wgpu::util::DeviceExt;
+
+/// Depth buffer format (reversed Z: near is 1, infinity 0).
+const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Bytes of the uniform block (see `Frame` in `terrain.wgsl`).
+const FRAME_BYTES: usize = 60 * 4;
+
+/// What one frame is drawn with.
+#[derive(Clone, Copy, Debug)]
+pub struct FrameParams {
+    /// The camera.
+    pub camera: Camera,
+    /// The lens; its width and height are the target's.
+    pub lens: Lens,
+    /// The geomorph.
+    pub rule: MorphRule,
+    /// Now, seconds on the clock the scene's split times use.
+    pub now: f32,
+    /// Draw triangle edges over the shading.
+    pub wireframe: bool,
+    /// Heights spanned by the colour ramp, metres.
+    pub z_range: (f32, f32),
+    /// Encode sRGB in the shader (for targets that do not encode it themselves).
+    pub encode_srgb: bool,
+    /// Clear colour, 0..1 as stored in the target.
+    pub background: [f64; 3],
+    /// Distance at which the haze reaches about two thirds of its strength, metres.
+    pub fog_distance: f32,
+}
+
+/// GPU buffers, pipelines and bind groups for one scene.
+pub struct Renderer {
+    /// Node records.
+    nodes: GpuPool,
+    /// Cell records.
+    cells: GpuPool,
+    /// Drawn positions, one `vec4<f32>` per node slot, written by the compute pass.
+    drawn: wgpu::Buffer,
+    /// The uniform block.
+    frame: wgpu::Buffer,
+    /// Group 0: frame and nodes.
+    layout_common: wgpu::BindGroupLayout,
+    /// Group 1: drawn positions, written.
+    layout_morph: wgpu::BindGroupLayout,
+    /// Group 2: drawn positions and cells, read.
+    layout_draw: wgpu::BindGroupLayout,
+    /// Bind groups, remade when a buffer grows.
+    groups: Option<[wgpu::BindGroup; 3]>,
+    /// The geomorph pass.
+    morph: wgpu::ComputePipeline,
+    /// The terrain pass.
+    draw: wgpu::RenderPipeline,
+    /// Depth buffer and its size.
+    depth: Option<(wgpu::TextureView, (u32, u32))>,
+}
+
+/// One pool's GPU buffer.
+struct GpuPool {
+    /// The buffer, sized to the pool's capacity.
+    buffer: wgpu::Buffer,
+    /// Its capacity in records.
+    records: usize,
+}
+
+impl GpuPool {
+    fn new(gpu: &Gpu, pool: &Pool, label: &str) -> GpuPool {
+        GpuPool {
+            buffer: gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: bytemuck::cast_slice(pool.words()),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                }),
+            records: pool.capacity(),
+        }
+    }
+
+    /// Uploads what changed in `pool` (all of it after growth); returns the bytes sent and
+    /// whether the buffer was made anew.
+    fn sync(&mut self, gpu: &Gpu, pool: &mut Pool, label: &str) -> (usize, bool) {
+        if pool.grown() || pool.capacity() != self.records {
+            *self = GpuPool::new(gpu, pool, label);
+            let _ = pool.take_dirty();
+            return (pool.words().len() * 4, true);
+        }
+        let mut bytes = 0;
+        for (start, len) in pool.take_dirty() {
+            let words = &pool.words()[start..start + len];
+            gpu.queue
+                .write_buffer(&self.buffer, start as u64 * 4, bytemuck::cast_slice(words));
+            bytes += len * 4;
+        }
+        (bytes, false)
+    }
+}
+
+fn storage(binding: u32, read_only: bool, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl Renderer {
+    /// Pipelines drawing into `format` targets, with buffers for `scene`.
+    pub fn new(gpu: &Gpu, format: wgpu::TextureFormat, scene: &mut Scene) -> Renderer {
+        let dev = &gpu.device;
+        let module = dev.create_shader_module(wgpu::include_wgsl!("terrain.wgsl"));
+        let cv = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::VERTEX_FRAGMENT;
+        let layout_common = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("relief common"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: cv,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+                storage(1, true, wgpu::ShaderStages::COMPUTE),
+            ],
+        });
+        let layout_morph = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("relief morph"),
+            entries: &[storage(0, false, wgpu::ShaderStages::COMPUTE)],
+        });
+        let layout_draw = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("relief draw"),
+            entries: &[
+                storage(0, true, wgpu::ShaderStages::VERTEX),
+                storage(1, true, wgpu::ShaderStages::VERTEX),
+            ],
+        });
+        let empty = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("relief empty"),
+            entries: &[],
+        });
+        let morph_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("relief morph"),
+            bind_group_layouts: &[Some(&layout_common), Some(&layout_morph)],
+            immediate_size: 0,
+        });
+        let draw_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("relief draw"),
+            bind_group_layouts: &[Some(&layout_common), Some(&empty), Some(&layout_draw)],
+            immediate_size: 0,
+        });
+        let morph = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("relief morph"),
+            layout: Some(&morph_layout),
+            module: &module,
+            entry_point: Some("morph"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let draw = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("relief terrain"),
+            layout: Some(&draw_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                // Geomorphs may fold a triangle for a moment: draw both faces.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let frame = dev.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("relief frame"),
+            size: FRAME_BYTES as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let nodes = GpuPool::new(gpu, &scene.nodes, "relief nodes");
+        let cells = GpuPool::new(gpu, &scene.cells, "relief cells");
+        let _ = scene.nodes.take_dirty();
+        let _ = scene.cells.take_dirty();
+        let drawn = drawn_buffer(gpu, nodes.records);
+        Renderer {
+            nodes,
+            cells,
+            drawn,
+            frame,
+            layout_common,
+            layout_morph,
+            layout_draw,
+            groups: None,
+            morph,
+            draw,
+            depth: None,
+        }
+    }
+
+    /// Uploads the records `scene` changed since the last call; returns the bytes sent.
+    pub fn upload(&mut self, gpu: &Gpu, scene: &mut Scene) -> usize {
+        let (a, grew_nodes) = self.nodes.sync(gpu, &mut scene.nodes, "relief nodes");
+        let (b, grew_cells) = self.cells.sync(gpu, &mut scene.cells, "relief cells");
+        if grew_nodes {
+            self.drawn = drawn_buffer(gpu, self.nodes.records);
+        }
+        if grew_nodes || grew_cells {
+            self.groups = None;
+        }
+        a + b
+    }
+
+    fn groups(&mut self, gpu: &Gpu) -> &[wgpu::BindGroup; 3] {
+        let dev = &gpu.device;
+        self.groups.get_or_insert_with(|| {
+            fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+                wgpu::BindGroupEntry {
+                    binding,
+                    resource: buffer.as_entire_binding(),
+                }
+            }
+            [
+                dev.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("relief common"),
+                    layout: &self.layout_common,
+                    entries: &[entry(0, &self.frame), entry(1, &self.nodes.buffer)],
+                }),
+                dev.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("relief morph"),
+                    layout: &self.layout_morph,
+                    entries: &[entry(0, &self.drawn)],
+                }),
+                dev.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("relief draw"),
+                    layout: &self.layout_draw,
+                    entries: &[entry(0, &self.drawn), entry(1, &self.cells.buffer)],
+                }),
+            ]
+        })
+    }
+
+    /// Encodes the geomorph pass for `f` into `enc`.
+    fn encode_morph(&mut self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder, f: &FrameParams) {
+        gpu.queue
+            .write_buffer(&self.frame, 0, bytemuck::cast_slice(&frame_block(f)));
+        let workgroups = self.nodes.records.div_ceil(64) as u32;
+        let (x, y) = (workgroups.min(65_535), workgroups.div_ceil(65_535));
+        let morph = self.morph.clone();
+        let groups = self.groups(gpu);
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("relief morph"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&morph);
+        pass.set_bind_group(0, &groups[0], &[]);
+        pass.set_bind_group(1, &groups[1], &[]);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+
+    /// Runs the geomorph pass alone (for tests that read the drawn positions back).
+    pub fn morph_only(&mut self, gpu: &Gpu, f: &FrameParams) {
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        self.encode_morph(gpu, &mut enc, f);
+        gpu.queue.submit([enc.finish()]);
+    }
+
+    /// Draws the scene into `target` (of the lens's size): geomorph, then terrain.
+    pub fn render(&mut self, gpu: &Gpu, target: &wgpu::TextureView, f: &FrameParams) {
+        let size = (f.lens.width.max(1), f.lens.height.max(1));
+        if self.depth.as_ref().is_none_or(|d| d.1 != size) {
+            let tex = gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("relief depth"),
+                size: wgpu::Extent3d {
+                    width: size.0,
+                    height: size.1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: DEPTH,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                view_formats: &[],
+            });
+            self.depth = Some((tex.create_view(&Default::default()), size));
+        }
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        self.encode_morph(gpu, &mut enc, f);
+        let vertices = (self.cells.records * CELL_WORDS) as u32;
+        let draw = self.draw.clone();
+        let groups = self.groups(gpu).clone();
+        let depth = &self.depth.as_ref().expect("made above").0;
+        {
+            let [r, g, b] = f.background;
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("relief terrain"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(0.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&draw);
+            pass.set_bind_group(0, &groups[0], &[]);
+            pass.set_bind_group(2, &groups[2], &[]);
+            pass.draw(0..vertices, 0..1);
+        }
+        gpu.queue.submit([enc.finish()]);
+    }
+
+    /// The drawn positions of the last geomorph pass, one per node slot (waits for the GPU).
+    pub fn read_drawn(&self, gpu: &Gpu) -> Result<Vec<Vec3>, RenderError> {
+        let bytes = read_buffer(gpu, &self.drawn, (self.nodes.records * 16) as u64)?;
+        let floats: Vec<f32> = bytes
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
+        Ok(floats
+            .chunks_exact(4)
+            .map(|v| Vec3::new(v[0], v[1], v[2]))
+            .collect())
+    }
+}
+
+fn drawn_buffer(gpu: &Gpu, records: usize) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("relief drawn"),
+        size: (records.max(1) * 16) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
+/// Copies `size` bytes of `src` into a mapped buffer and returns them (waits for the GPU).
+pub(crate) fn read_buffer(
+    gpu: &Gpu,
+    src: &wgpu::Buffer,
+    size: u64,
+) -> Result<Vec<u8>, RenderError> {
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("relief readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+    gpu.queue.submit([enc.finish()]);
+    map_read(gpu, &staging)
+}
+
+/// Maps `buffer` for reading and returns its bytes (waits for the GPU).
+pub(crate) fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.wait();
+    rx.recv()
+        .map_err(|e| RenderError::Readback(e.to_string()))?
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    let out = slice
+        .get_mapped_range()
+        .map_err(|e| RenderError::Readback(e.to_string()))?
+        .to_vec();
+    buffer.unmap();
+    Ok(out)
+}
+
+/// Right-handed perspective with an infinite far plane and reversed depth (1 at the near plane,
+/// 0 at infinity), for wgpu's 0..1 clip depth: the best depth precision far away.
+fn projection(fov_y: f32, aspect: f32, near: f32) -> Mat4 {
+    let f = 1.0 / (fov_y / 2.0).tan();
+    Mat4::from_cols(
+        Vec4::new(f / aspect, 0.0, 0.0, 0.0),
+        Vec4::new(0.0, f, 0.0, 0.0),
+        Vec4::new(0.0, 0.0, 0.0, -1.0),
+        Vec4::new(0.0, 0.0, near, 0.0),
+    )
+}
+
+/// View rotation from the eye looking along `dir` with z up (the eye is the origin: positions
+/// reach the shader relative to it).
+fn look_to(dir: Vec3) -> Mat4 {
+    let f = dir.normalize();
+    let s = f.cross(Vec3::Z).normalize_or(Vec3::X);
+    let u = s.cross(f);
+    Mat4::from_cols(
+        Vec4::new(s.x, u.x, -f.x, 0.0),
+        Vec4::new(s.y, u.y, -f.y, 0.0),
+        Vec4::new(s.z, u.z, -f.z, 0.0),
+        Vec4::W,
+    )
+}
+
+/// The uniform block of `Frame` in `terrain.wgsl`.
+fn frame_block(f: &FrameParams) -> [f32; FRAME_BYTES / 4] {
+    let view = ViewState::new(&f.camera, &f.lens);
+    let forward = f.camera.forward();
+    let aspect = f.lens.width.max(1) as f32 / f.lens.height.max(1) as f32;
+    let proj = projection(f.lens.fov_y_deg.to_radians(), aspect, f.lens.near);
+    let look = look_to(forward);
+    let mut b = [0.0f32; FRAME_BYTES / 4];
+    b[0..16].copy_from_slice(&(proj * look).to_cols_array());
+    b[16..20].copy_from_slice(&[f.camera.eye.x, f.camera.eye.y, f.camera.eye.z, f.now]);
+    b[20..24].copy_from_slice(&[forward.x, forward.y, forward.z, view.focal()]);
+    for (i, n) in view.planes().iter().enumerate() {
+        let offset = if i == 4 { view.near() } else { 0.0 };
+        b[24 + 4 * i..28 + 4 * i].copy_from_slice(&[n.x, n.y, n.z, offset]);
+    }
+    b[44..48].copy_from_slice(&[f.rule.tau, f.rule.lambda, f.rule.duration, view.off_axis()]);
+    b[48..52].copy_from_slice(&[
+        view.near(),
+        f.z_range.0,
+        f.z_range.1,
+        if f.wireframe { 1.0 } else { 0.0 },
+    ]);
+    let sun = Vec3::new(-0.55, 0.45, 0.70).normalize();
+    let srgb = if f.encode_srgb { 1.0 } else { 0.0 };
+    b[52..56].copy_from_slice(&[sun.x, sun.y, sun.z, srgb]);
+    b[56..60].copy_from_slice(&[0.62, 0.70, 0.80, f.fog_distance.max(1.0)]);
+    b
+}

@@ -1,0 +1,323 @@
+//! The CPU side of the GPU buffers: node and triangle records in slot pools, kept in step with
+//! the mirror and its fan mesh one split or merge at a time, with the pages that changed marked
+//! for upload. No wgpu here, so it is unit-tested without a GPU.
+//!
+//! **Nodes.** Every node the mirror holds (active and interior) owns a slot in the node pool
+//! while it is held. Its record, [`NODE_WORDS`] 32-bit words, carries what the geomorph needs
+//! (paper 000, section 3.6; [`relief_proto::mesh::morph`]): its position at rest, its parent's
+//! slot, the box and static error its screen error is computed from, and when its split was
+//! applied. A split allocates the children's slots; a merge frees them.
+//!
+//! **Triangles.** Every non-empty junction cell of the fan mesh owns a slot in the cell pool,
+//! [`CELL_WORDS`] words: its two triangles as node slots ([`NONE`] for a missing triangle, which
+//! the vertex shader drops). Cells are rewritten when the fan mesh reports them dirty.
+//!
+//! **Upload.** Pools only grow (doubling). Writes mark fixed-size pages dirty; the renderer
+//! uploads runs of dirty pages, never the whole mesh per delta.
+
+use crate::session::Change;
+use relief_proto::haar::error_value;
+use relief_proto::mesh::FanMesh;
+use relief_proto::mirror::Mirror;
+use relief_proto::terrain::TerrainGeometry;
+use relief_proto::tree::NodeId;
+use rustc_hash::{FxHashMap, FxHashSet};
+
+/// "No slot": the root's parent, a missing triangle, a free record.
+pub const NONE: u32 = u32::MAX;
+/// 32-bit words per node record: position, parent slot, box min, static error, box max, split
+/// time (see `terrain.wgsl`).
+pub const NODE_WORDS: usize = 12;
+/// 32-bit words per cell record: two triangles of node slots.
+pub const CELL_WORDS: usize = 6;
+/// Records per upload page.
+const PAGE_RECORDS: usize = 256;
+/// The split time of a node split before anyone was watching: long enough ago that its
+/// children have grown out fully.
+const LONG_AGO: f32 = -1.0e30;
+
+/// A pool of fixed-size records with a free list and dirty pages.
+#[derive(Debug)]
+pub struct Pool {
+    /// 32-bit words per record.
+    stride: usize,
+    /// The records, `capacity * stride` words: a shadow of the GPU buffer.
+    words: Vec<u32>,
+    /// Records ever handed out (slots below this are used or free).
+    used: u32,
+    /// Released slots, reused first.
+    free: Vec<u32>,
+    /// One flag per page: written since the last upload.
+    dirty: Vec<bool>,
+    /// The capacity changed since the last upload: the GPU buffer must be made anew.
+    grown: bool,
+}
+
+impl Pool {
+    /// An empty pool of records of `stride` words.
+    pub fn new(stride: usize) -> Pool {
+        let mut p = Pool {
+            stride,
+            words: Vec::new(),
+            used: 0,
+            free: Vec::new(),
+            dirty: Vec::new(),
+            grown: true,
+        };
+        p.reserve(PAGE_RECORDS);
+        p
+    }
+
+    fn reserve(&mut self, records: usize) {
+        let cap = self.capacity();
+        if records <= cap {
+            return;
+        }
+        let new_cap = records.next_power_of_two().max(PAGE_RECORDS);
+        self.words.resize(new_cap * self.stride, NONE);
+        self.dirty.resize(new_cap / PAGE_RECORDS, true);
+        self.grown = true;
+    }
+
+    /// Records the buffer has room for.
+    pub fn capacity(&self) -> usize {
+        self.words.len() / self.stride
+    }
+
+    /// Records in use.
+    pub fn live(&self) -> usize {
+        self.used as usize - self.free.len()
+    }
+
+    /// A free slot.
+    pub fn alloc(&mut self) -> u32 {
+        if let Some(s) = self.free.pop() {
+            return s;
+        }
+        let s = self.used;
+        self.used += 1;
+        self.reserve(self.used as usize);
+        s
+    }
+
+    /// Gives `slot` back; its record is cleared to [`NONE`].
+    pub fn release(&mut self, slot: u32) {
+        let at = slot as usize * self.stride;
+        self.words[at..at + self.stride].fill(NONE);
+        self.dirty[slot as usize / PAGE_RECORDS] = true;
+        self.free.push(slot);
+    }
+
+    /// Writes the record at `slot`.
+    pub fn write(&mut self, slot: u32, record: &[u32]) {
+        let at = slot as usize * self.stride;
+        if self.words[at..at + self.stride] != *record {
+            self.words[at..at + self.stride].copy_from_slice(record);
+            self.dirty[slot as usize / PAGE_RECORDS] = true;
+        }
+    }
+
+    /// The record at `slot`.
+    pub fn record(&self, slot: u32) -> &[u32] {
+        let at = slot as usize * self.stride;
+        &self.words[at..at + self.stride]
+    }
+
+    /// All records, for a full upload.
+    pub fn words(&self) -> &[u32] {
+        &self.words
+    }
+
+    /// Whether the capacity changed since the last [`Pool::take_dirty`].
+    pub fn grown(&self) -> bool {
+        self.grown
+    }
+
+    /// The dirty ranges of words, as `(first word, word count)`, adjacent pages merged; clears
+    /// the dirty marks.
+    pub fn take_dirty(&mut self) -> Vec<(usize, usize)> {
+        let page = PAGE_RECORDS * self.stride;
+        let mut runs: Vec<(usize, usize)> = Vec::new();
+        for (i, d) in self.dirty.iter_mut().enumerate() {
+            if !std::mem::take(d) {
+                continue;
+            }
+            match runs.last_mut() {
+                Some((start, len)) if *start + *len == i * page => *len += page,
+                _ => runs.push((i * page, page)),
+            }
+        }
+        self.grown = false;
+        runs
+    }
+}
+
+/// The node and triangle records of one mirror.
+#[derive(Debug)]
+pub struct Scene {
+    /// Slot of each held node, by dense index.
+    node_slot: FxHashMap<u64, u32>,
+    /// Node records.
+    pub nodes: Pool,
+    /// Slot of each non-empty junction cell.
+    cell_slot: FxHashMap<(u32, u32), u32>,
+    /// Cell records.
+    pub cells: Pool,
+}
+
+impl Scene {
+    /// The records of everything `mirror` holds and every cell of `mesh` (whose dirty list is
+    /// emptied). Splits count as long done: nothing is still growing.
+    pub fn build(geom: &TerrainGeometry, mirror: &Mirror, mesh: &mut FanMesh) -> Scene {
+        let mut s = Scene {
+            node_slot: FxHashMap::default(),
+            nodes: Pool::new(NODE_WORDS),
+            cell_slot: FxHashMap::default(),
+            cells: Pool::new(CELL_WORDS),
+        };
+        let mut held: Vec<u64> = mirror.held().map(|(i, _)| i).collect();
+        // Parents before children, so that a record's parent slot exists when it is written.
+        held.sort_unstable();
+        for &i in &held {
+            let slot = s.nodes.alloc();
+            s.node_slot.insert(i, slot);
+        }
+        for &i in &held {
+            if let Some(n) = geom.shape.node(i) {
+                s.write_node(geom, mirror, n, LONG_AGO);
+            }
+        }
+        let _ = mesh.take_dirty();
+        for cell in mesh.cells() {
+            s.write_cell(geom, mesh, cell);
+        }
+        s
+    }
+
+    /// Brings the records up to date after the mirror applied `changes` (in order) and `mesh`
+    /// followed; `now` is the split time given to new splits, seconds on the renderer's clock.
+    pub fn apply(
+        &mut self,
+        geom: &TerrainGeometry,
+        mirror: &Mirror,
+        mesh: &mut FanMesh,
+        changes: &[Change],
+        now: f32,
+    ) {
+        let shape = &geom.shape;
+        let mut touched: FxHashSet<NodeId> = FxHashSet::default();
+        let mut split_now: FxHashSet<NodeId> = FxHashSet::default();
+        for &c in changes {
+            match c {
+                Change::Merge(m) => {
+                    for (_, child) in shape.children(m) {
+                        if let Some(slot) = self.node_slot.remove(&shape.index(child)) {
+                            self.nodes.release(slot);
+                        }
+                        touched.remove(&child);
+                        split_now.remove(&child);
+                    }
+                    touched.insert(m);
+                }
+                Change::Split(n) => {
+                    for (_, child) in shape.children(n) {
+                        let i = shape.index(child);
+                        if !self.node_slot.contains_key(&i) {
+                            let slot = self.nodes.alloc();
+                            self.node_slot.insert(i, slot);
+                        }
+                        touched.insert(child);
+                    }
+                    touched.insert(n);
+                    split_now.insert(n);
+                }
+            }
+        }
+        let mut touched: Vec<NodeId> = touched.into_iter().collect();
+        touched.sort_unstable_by_key(|&n| shape.index(n));
+        for n in touched {
+            let Some(&slot) = self.node_slot.get(&shape.index(n)) else {
+                continue;
+            };
+            let t = if split_now.contains(&n) {
+                now
+            } else if self.nodes.record(slot)[11] == NONE {
+                LONG_AGO
+            } else {
+                f32::from_bits(self.nodes.record(slot)[11])
+            };
+            self.write_node(geom, mirror, n, t);
+        }
+        for cell in mesh.take_dirty() {
+            self.write_cell(geom, mesh, cell);
+        }
+    }
+
+    fn write_node(&mut self, geom: &TerrainGeometry, mirror: &Mirror, n: NodeId, t_split: f32) {
+        let shape = &geom.shape;
+        let (Some(&slot), Some(d)) = (self.node_slot.get(&shape.index(n)), mirror.node(geom, n))
+        else {
+            return;
+        };
+        let parent = n
+            .parent()
+            .and_then(|p| self.node_slot.get(&shape.index(p)).copied())
+            .unwrap_or(NONE);
+        let p = geom.world_pos(n, d.z);
+        let b = geom.node_box(n, d.z, d.err_code);
+        let f = |v: f32| v.to_bits();
+        let rec = [
+            f(p.x),
+            f(p.y),
+            f(p.z),
+            parent,
+            f(b.min.x),
+            f(b.min.y),
+            f(b.min.z),
+            f(error_value(d.err_code)),
+            f(b.max.x),
+            f(b.max.y),
+            f(b.max.z),
+            f(t_split),
+        ];
+        self.nodes.write(slot, &rec);
+    }
+
+    fn write_cell(&mut self, geom: &TerrainGeometry, mesh: &FanMesh, cell: (u32, u32)) {
+        let tris = mesh.cell(cell);
+        if tris.iter().all(Option::is_none) {
+            if let Some(slot) = self.cell_slot.remove(&cell) {
+                self.cells.release(slot);
+            }
+            return;
+        }
+        let slot = match self.cell_slot.get(&cell) {
+            Some(&s) => s,
+            None => {
+                let s = self.cells.alloc();
+                self.cell_slot.insert(cell, s);
+                s
+            }
+        };
+        let mut rec = [NONE; CELL_WORDS];
+        for (k, t) in tris.iter().enumerate() {
+            let Some(t) = t else { continue };
+            let slots = t.0.map(|n| self.node_slot.get(&geom.shape.index(n)).copied());
+            // Every vertex of a triangle of the mesh is held; if not, drop the triangle whole
+            // rather than draw it with a missing corner.
+            debug_assert!(slots.iter().all(Option::is_some), "cell {cell:?}: vertex not held");
+            if let [Some(a), Some(b), Some(c)] = slots {
+                rec[k * 3..k * 3 + 3].copy_from_slice(&[a, b, c]);
+            }
+        }
+        self.cells.write(slot, &rec);
+    }
+
+    /// The slot of a held node.
+    pub fn slot_of(&self, geom: &TerrainGeometry, n: NodeId) -> Option<u32> {
+        self.node_slot.get(&geom.shape.index(n)).copied()
+    }
+}
+
+#[cfg(test)]
+mod tests;

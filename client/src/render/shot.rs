@@ -1,0 +1,268 @@
+//! `relief-client shot`: stream the cut for one camera (or a path up to one frame) and draw it
+//! offscreen into a PNG. Works on Mesa's software Vulkan, with no window.
+//!
+//! With `--path K --frame N` the session flies the path's poses 0..=N in lock step, as a viewer
+//! at the path's rate would receive them, each split stamped with its pose's time; the frame is
+//! drawn one pose interval after pose N, so the last pose's splits are still growing, as they
+//! would be on screen. With `--camera`, one pose is streamed and drawn after every geomorph has
+//! settled.
+
+use super::follow::Follower;
+use super::height_range;
+use super::gpu::{Gpu, RenderError};
+use super::offscreen::Offscreen;
+use super::renderer::{FrameParams, Renderer};
+use crate::flight::{PathSpec, extent, server_path};
+use crate::http::HttpError;
+use crate::session::{ClientError, Session, SessionConfig};
+use relief_proto::mesh::MorphRule;
+use relief_proto::path::{PATH_HZ, PathKind};
+use relief_proto::view::{Camera, Lens};
+
+/// Which camera a shot is taken from.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ShotPose {
+    /// A fixed camera.
+    Camera(Camera),
+    /// Pose `frame` of a path, flown from its start.
+    Path {
+        /// The path.
+        kind: PathKind,
+        /// The pose index.
+        frame: usize,
+    },
+}
+
+/// What to draw.
+#[derive(Clone, Debug)]
+pub struct ShotOptions {
+    /// The session (its lens's width and height are the image's).
+    pub session: SessionConfig,
+    /// The camera.
+    pub pose: ShotPose,
+    /// Draw triangle edges.
+    pub wireframe: bool,
+    /// Clear colour, 8-bit RGB.
+    pub background: [u8; 3],
+}
+
+/// What a shot drew.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct ShotReport {
+    /// The adapter used.
+    pub adapter: String,
+    /// Image width and height.
+    pub size: (u32, u32),
+    /// Triangles drawn.
+    pub triangles: usize,
+    /// Deltas received.
+    pub deltas: u64,
+    /// Bytes received.
+    pub bytes: u64,
+}
+
+/// Why a shot failed.
+#[derive(Debug, thiserror::Error)]
+pub enum ShotError {
+    /// The session failed.
+    #[error(transparent)]
+    Session(#[from] ClientError),
+    /// Fetching the path's ground heights failed.
+    #[error(transparent)]
+    Http(#[from] HttpError),
+    /// Rendering failed.
+    #[error(transparent)]
+    Render(#[from] RenderError),
+    /// The frame asked for is past the path's end.
+    #[error("--frame {frame} is past the path's last pose ({last})")]
+    FrameOutOfRange {
+        /// Asked.
+        frame: usize,
+        /// The last pose index.
+        last: usize,
+    },
+}
+
+/// A session streamed to a camera, its scene, and the clock its splits were stamped with.
+pub struct Streamed {
+    /// The session, with its mirror and mesh.
+    pub session: Session,
+    /// Its records.
+    pub follower: Follower,
+    /// When the frame should be drawn, seconds on the scene's clock.
+    pub now: f32,
+    /// The camera to draw from.
+    pub camera: Camera,
+}
+
+/// Connects and streams the cut for `pose`.
+pub async fn stream_to(config: SessionConfig, pose: ShotPose) -> Result<Streamed, ShotError> {
+    let config = SessionConfig {
+        mesh: true,
+        record_changes: true,
+        ..config
+    };
+    let mut session = Session::connect(config).await?;
+    let mut follower = Follower::new(&mut session);
+    let (cams, last) = match pose {
+        ShotPose::Camera(c) => (vec![c], 0),
+        ShotPose::Path { kind, frame } => {
+            let ext = extent(session.terrain());
+            let url = session.url().to_string();
+            let cams = server_path(&url, ext, PathSpec::Kind(kind)).await?;
+            if frame >= cams.len() {
+                return Err(ShotError::FrameOutOfRange {
+                    frame,
+                    last: cams.len().saturating_sub(1),
+                });
+            }
+            (cams, frame)
+        }
+    };
+    for (k, cam) in cams.iter().enumerate().take(last + 1) {
+        let seq = session.send_pose(*cam).await?;
+        session.wait_for_pose(seq).await?;
+        follower.sync(&mut session, k as f32 / PATH_HZ);
+    }
+    let now = match pose {
+        ShotPose::Camera(_) => 1.0e3,
+        ShotPose::Path { .. } => (last + 1) as f32 / PATH_HZ,
+    };
+    Ok(Streamed {
+        session,
+        follower,
+        now,
+        camera: cams[last],
+    })
+}
+
+/// The frame parameters a shot of `s` uses.
+pub fn frame_params(s: &Streamed, lens: Lens, wireframe: bool, background: [u8; 3]) -> FrameParams {
+    FrameParams {
+        camera: s.camera,
+        lens,
+        rule: MorphRule::new(s.session.tau()),
+        now: s.now,
+        wireframe,
+        z_range: height_range(s.session.terrain()),
+        encode_srgb: true,
+        background: background.map(|c| f64::from(c) / 255.0),
+        fog_distance: super::fog_distance(s.session.geometry()),
+    }
+}
+
+/// Draws `s` offscreen with `gpu` and returns the image.
+pub fn draw(
+    gpu: &Gpu,
+    s: &mut Streamed,
+    params: &FrameParams,
+) -> Result<image::RgbaImage, RenderError> {
+    let target = Offscreen::new(gpu, params.lens.width, params.lens.height);
+    let mut renderer = Renderer::new(gpu, super::offscreen::FORMAT, &mut s.follower.scene);
+    renderer.render(gpu, &target.view, params);
+    target.read(gpu)
+}
+
+/// Takes the shot: streams, draws, returns the image and what was drawn.
+pub async fn shot(opts: &ShotOptions) -> Result<(image::RgbaImage, ShotReport), ShotError> {
+    let gpu = Gpu::headless()?;
+    let lens = opts.session.lens;
+    let mut s = stream_to(opts.session.clone(), opts.pose).await?;
+    let params = frame_params(&s, lens, opts.wireframe, opts.background);
+    let img = draw(&gpu, &mut s, &params)?;
+    let c = s.session.counters();
+    let report = ShotReport {
+        adapter: gpu.describe(),
+        size: (lens.width, lens.height),
+        triangles: s.session.mesh().triangle_count(),
+        deltas: c.deltas,
+        bytes: c.bytes_in,
+    };
+    s.session.close().await;
+    Ok((img, report))
+}
+
+/// Parses `WxH` (each 16 to 8192 pixels).
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("size {s:?} is not WxH, e.g. 1280x720"))?;
+    let dim = |v: &str| -> Result<u32, String> {
+        let n: u32 = v
+            .trim()
+            .parse()
+            .map_err(|_| format!("size {s:?}: {v:?} is not a whole number"))?;
+        if (16..=8192).contains(&n) {
+            Ok(n)
+        } else {
+            Err(format!("size {s:?}: each side must be 16 to 8192 pixels"))
+        }
+    };
+    Ok((dim(w)?, dim(h)?))
+}
+
+/// Parses `x,y,z,yaw,pitch`: metres east and north of the terrain's south-west sample, metres
+/// of height, degrees counter-clockwise from east, degrees of elevation (negative looks down).
+pub fn parse_camera(s: &str) -> Result<Camera, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("camera {s:?} is not five numbers x,y,z,yaw,pitch"))?;
+    let [x, y, z, yaw, pitch] = v[..] else {
+        return Err(format!("camera {s:?} is not five numbers x,y,z,yaw,pitch"));
+    };
+    let cam = Camera {
+        eye: glam::Vec3::new(x, y, z),
+        yaw: yaw.to_radians(),
+        pitch: pitch.to_radians(),
+    };
+    if cam.is_valid() {
+        Ok(cam)
+    } else {
+        Err(format!(
+            "camera {s:?}: numbers must be finite and the pitch within (-90, 90) degrees"
+        ))
+    }
+}
+
+/// Parses a colour: `#rrggbb` or `r,g,b` (0-255).
+pub fn parse_colour(s: &str) -> Result<[u8; 3], String> {
+    let bad = || format!("colour {s:?} is not #rrggbb or r,g,b");
+    if let Some(hex) = s.strip_prefix('#') {
+        if hex.len() != 6 {
+            return Err(bad());
+        }
+        let c = |i: usize| u8::from_str_radix(&hex[i..i + 2], 16).map_err(|_| bad());
+        return Ok([c(0)?, c(2)?, c(4)?]);
+    }
+    let v: Vec<u8> = s
+        .split(',')
+        .map(|p| p.trim().parse::<u8>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| bad())?;
+    v.try_into().map_err(|_| bad())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_sizes_cameras_and_colours() {
+        assert_eq!(parse_size("1280x720"), Ok((1280, 720)));
+        assert!(parse_size("1280").is_err());
+        assert!(parse_size("0x720").is_err());
+        assert!(parse_size("99999x720").is_err());
+        let c = parse_camera("100,200,3000,90,-30").unwrap();
+        assert_eq!(c.eye, glam::Vec3::new(100.0, 200.0, 3000.0));
+        assert!((c.yaw - std::f32::consts::FRAC_PI_2).abs() < 1e-6);
+        assert!(parse_camera("1,2,3,4").is_err());
+        assert!(parse_camera("1,2,3,4,95").is_err());
+        assert!(parse_camera("1,2,nan,4,5").is_err());
+        assert_eq!(parse_colour("#ff00fe"), Ok([255, 0, 254]));
+        assert_eq!(parse_colour("1, 2,3"), Ok([1, 2, 3]));
+        assert!(parse_colour("#ff00").is_err());
+        assert!(parse_colour("1,2,300").is_err());
+    }
+}

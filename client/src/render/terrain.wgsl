@@ -1,0 +1,179 @@
+// Relief's terrain shaders: the geomorph (compute), vertex pulling (vertex) and shading
+// (fragment). The records are written by `scene.rs`; the morph is the formula of
+// `relief_proto::mesh::morph`, which is its reference (paper 000, section 3.6).
+
+const NONE: u32 = 0xffffffffu;
+
+struct Frame {
+    // Projection times view, for positions relative to the eye.
+    view_proj: mat4x4<f32>,
+    // xyz: eye, world metres; w: now, seconds on the renderer's clock.
+    eye: vec4<f32>,
+    // xyz: unit view direction; w: focal length, pixels.
+    forward: vec4<f32>,
+    // Inward normals of the four side planes and the near plane; w: the plane's offset.
+    planes: array<vec4<f32>, 5>,
+    // tau (px), lambda, growth duration (s, 0: none), off-axis bound.
+    morph: vec4<f32>,
+    // near (m), lowest height, highest height (the colour ramp), wireframe (0 or 1).
+    misc: vec4<f32>,
+    // xyz: unit direction towards the sun; w: 1 to encode sRGB in the shader.
+    light: vec4<f32>,
+    // rgb: haze colour (linear); w: fog distance, metres.
+    haze: vec4<f32>,
+};
+
+struct Node {
+    // Position at rest, world metres.
+    pos: vec3<f32>,
+    // The parent's slot; NONE for the root.
+    parent: u32,
+    // The box of the node's screen error.
+    box_min: vec3<f32>,
+    // Static error, metres (0 until the node has split).
+    err: f32,
+    box_max: vec3<f32>,
+    // When the client applied the node's split, seconds.
+    t_split: f32,
+};
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> nodes: array<Node>;
+@group(1) @binding(0) var<storage, read_write> drawn_out: array<vec4<f32>>;
+@group(2) @binding(0) var<storage, read> drawn: array<vec4<f32>>;
+@group(2) @binding(1) var<storage, read> cells: array<u32>;
+
+// Screen error of a box (relief_proto::view::ViewState::error_of).
+fn screen_error(b0: vec3<f32>, b1: vec3<f32>, err: f32) -> f32 {
+    if (err <= 0.0) {
+        return 0.0;
+    }
+    let rel_min = b0 - frame.eye.xyz;
+    let rel_max = b1 - frame.eye.xyz;
+    var margin = 3.0e38;
+    for (var i = 0u; i < 5u; i++) {
+        let n = frame.planes[i].xyz;
+        let p = select(rel_min, rel_max, n >= vec3<f32>(0.0));
+        margin = min(margin, dot(n, p) - frame.planes[i].w);
+    }
+    if (margin < 0.0) {
+        return 0.0;
+    }
+    let f = frame.forward.xyz;
+    let near_corner = select(rel_max, rel_min, f >= vec3<f32>(0.0));
+    let far = max(abs(rel_min), abs(rel_max));
+    let depth = max(dot(f, near_corner), frame.misc.x);
+    let r_max = sqrt(far.x * far.x + far.y * far.y);
+    return frame.forward.w * err * min(r_max / depth, frame.morph.w) / depth;
+}
+
+// Alpha of the children of `p` (MorphRule::alpha).
+fn alpha(p: Node) -> f32 {
+    let tau = frame.morph.x;
+    let e = screen_error(p.box_min, p.box_max, p.err);
+    var a = clamp((e - tau) / ((frame.morph.y - 1.0) * tau), 0.0, 1.0);
+    if (frame.morph.z > 0.0) {
+        a = min(a, clamp((frame.eye.w - p.t_split) / frame.morph.z, 0.0, 1.0));
+    }
+    return a;
+}
+
+// Where each node is drawn this frame: D(n) = D(p) + alpha(p) (P(n) - D(p)), walked upwards.
+@compute @workgroup_size(64)
+fn morph(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = id.x + id.y * groups.x * 64u;
+    if (i >= arrayLength(&nodes)) {
+        return;
+    }
+    var cur = i;
+    var out = vec3<f32>(0.0);
+    var w = 1.0;
+    for (var k = 0u; k < 64u; k++) {
+        let n = nodes[cur];
+        if (n.parent == NONE) {
+            out += w * n.pos;
+            break;
+        }
+        let a = alpha(nodes[n.parent]);
+        out += (w * a) * n.pos;
+        w *= 1.0 - a;
+        if (w <= 0.0) {
+            break;
+        }
+        cur = n.parent;
+    }
+    drawn_out[i] = vec4<f32>(out, 1.0);
+}
+
+struct VOut {
+    @builtin(position) clip: vec4<f32>,
+    // Position relative to the eye, metres.
+    @location(0) rel: vec3<f32>,
+    // Barycentric corner, for the wireframe.
+    @location(1) bary: vec3<f32>,
+    // Height, metres, for the colour ramp.
+    @location(2) height: f32,
+};
+
+// Vertex pulling: the vertex index walks the cell records, three slots a triangle.
+@vertex
+fn vs(@builtin(vertex_index) vi: u32) -> VOut {
+    var o: VOut;
+    let corner = vi % 3u;
+    o.bary = vec3<f32>(f32(corner == 0u), f32(corner == 1u), f32(corner == 2u));
+    let slot = cells[vi];
+    if (slot == NONE) {
+        // A missing triangle: all three corners land outside the clip volume.
+        o.clip = vec4<f32>(2.0, 2.0, 2.0, 1.0);
+        o.rel = vec3<f32>(0.0);
+        o.height = 0.0;
+        return o;
+    }
+    let p = drawn[slot].xyz;
+    let rel = p - frame.eye.xyz;
+    o.clip = frame.view_proj * vec4<f32>(rel, 1.0);
+    o.rel = rel;
+    o.height = p.z;
+    return o;
+}
+
+// Height colour ramp: lowland green, upland olive, brown, grey rock, snow.
+fn ramp(t: f32) -> vec3<f32> {
+    let c0 = vec3<f32>(0.16, 0.30, 0.10);
+    let c1 = vec3<f32>(0.42, 0.45, 0.20);
+    let c2 = vec3<f32>(0.45, 0.33, 0.20);
+    let c3 = vec3<f32>(0.50, 0.48, 0.46);
+    let c4 = vec3<f32>(0.95, 0.95, 0.97);
+    if (t < 0.25) {
+        return mix(c0, c1, t / 0.25);
+    } else if (t < 0.5) {
+        return mix(c1, c2, (t - 0.25) / 0.25);
+    } else if (t < 0.8) {
+        return mix(c2, c3, (t - 0.5) / 0.3);
+    }
+    return mix(c3, c4, (t - 0.8) / 0.2);
+}
+
+@fragment
+fn fs(in: VOut) -> @location(0) vec4<f32> {
+    // Flat normal of the drawn (morphed) triangle.
+    var n = normalize(cross(dpdx(in.rel), dpdy(in.rel)));
+    if (n.z < 0.0) {
+        n = -n;
+    }
+    let span = max(frame.misc.z - frame.misc.y, 1.0);
+    let base = ramp(clamp((in.height - frame.misc.y) / span, 0.0, 1.0));
+    let lambert = max(dot(n, frame.light.xyz), 0.0);
+    var c = base * (0.30 + 0.95 * lambert);
+    let fog = 1.0 - exp(-length(in.rel) / frame.haze.w);
+    c = mix(c, frame.haze.rgb, 0.45 * fog);
+    if (frame.misc.w > 0.5) {
+        let d = in.bary / max(fwidth(in.bary), vec3<f32>(1.0e-6));
+        let edge = min(min(d.x, d.y), d.z);
+        c = mix(vec3<f32>(0.05, 0.05, 0.07), c, smoothstep(0.0, 1.0, edge));
+    }
+    if (frame.light.w > 0.5) {
+        c = pow(c, vec3<f32>(1.0 / 2.2));
+    }
+    return vec4<f32>(c, 1.0);
+}

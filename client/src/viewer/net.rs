@@ -1,0 +1,220 @@
+//! The viewer's network thread: one session at a time, fed the window's latest camera at the
+//! pose rate, its deltas applied to the mirror, the fans and the shared scene. When the server
+//! goes away past the session's own reconnect deadline, it says so in the status and tries
+//! again with growing waits; a change of tau starts a new session.
+
+use crate::render::Follower;
+use crate::session::{Session, SessionConfig};
+use relief_proto::terrain::TerrainGeometry;
+use relief_proto::view::Camera;
+use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// What the network thread shares with the window.
+pub struct Shared {
+    /// The scene and what the title shows.
+    pub state: Mutex<NetState>,
+    /// The camera the window wants streamed, and the tau it asks for.
+    pub wanted: Mutex<(Option<Camera>, f32)>,
+    /// Set by the window to end the thread.
+    pub stop: AtomicBool,
+    /// The clock split times are stamped with.
+    pub clock: Instant,
+}
+
+/// The network side's state, read by the window each frame.
+#[derive(Default)]
+pub struct NetState {
+    /// The scene of the current session (`None` before the first welcome).
+    pub follower: Option<Follower>,
+    /// Bumped when `follower` is replaced: the renderer must make its buffers anew.
+    pub epoch: u64,
+    /// The terrain's geometry.
+    pub geom: Option<TerrainGeometry>,
+    /// The terrain's extent, metres, and highest height.
+    pub extent: Option<((f32, f32), f32)>,
+    /// Lowest and highest height of the terrain, metres (the colour ramp's span).
+    pub height_range: (f32, f32),
+    /// Height of the mesh under the last camera sent, metres.
+    pub ground: Option<f32>,
+    /// Triangles in the mesh.
+    pub triangles: usize,
+    /// Bytes received over the last second.
+    pub bytes_per_s: f64,
+    /// Latency of the last answered pose, milliseconds.
+    pub latency_ms: Option<f64>,
+    /// The tau of the current session.
+    pub tau: f32,
+    /// Connection state in words ("connected", or why not and when the next try is).
+    pub status: String,
+}
+
+impl Shared {
+    /// Fresh shared state asking for `tau`.
+    pub fn new(tau: f32) -> Arc<Shared> {
+        Arc::new(Shared {
+            state: Mutex::new(NetState {
+                status: "connecting".into(),
+                tau,
+                ..NetState::default()
+            }),
+            wanted: Mutex::new((None, tau)),
+            stop: AtomicBool::new(false),
+            clock: Instant::now(),
+        })
+    }
+
+    fn now(&self) -> f32 {
+        self.clock.elapsed().as_secs_f32()
+    }
+
+    fn set_status(&self, s: impl Into<String>) {
+        if let Ok(mut st) = self.state.lock() {
+            st.status = s.into();
+        }
+    }
+}
+
+/// Runs the network side until `shared.stop` is set.
+pub fn run(shared: Arc<Shared>, config: SessionConfig, rate_hz: f64) {
+    let rt = match tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+    {
+        Ok(rt) => rt,
+        Err(e) => {
+            shared.set_status(format!("cannot start the network thread: {e}"));
+            return;
+        }
+    };
+    rt.block_on(async move {
+        let mut wait = Duration::from_millis(500);
+        while !shared.stop.load(Ordering::Relaxed) {
+            let tau = shared.wanted.lock().map(|w| w.1).unwrap_or(config.tau);
+            let cfg = SessionConfig {
+                tau,
+                mesh: true,
+                record_changes: true,
+                reconnect_deadline: Duration::from_secs(5),
+                ..config.clone()
+            };
+            let why = match Session::connect(cfg).await {
+                Ok(session) => {
+                    wait = Duration::from_millis(500);
+                    match fly(&shared, session, rate_hz).await {
+                        Ok(()) => continue,
+                        Err(e) => e,
+                    }
+                }
+                Err(e) => e.to_string(),
+            };
+            if shared.stop.load(Ordering::Relaxed) {
+                break;
+            }
+            shared.set_status(format!(
+                "server unreachable ({why}); retrying in {:.0} s",
+                wait.as_secs_f32()
+            ));
+            tracing::warn!("{why}; retrying in {wait:?}");
+            tokio::time::sleep(wait).await;
+            wait = (wait * 2).min(Duration::from_secs(10));
+        }
+    });
+}
+
+/// Flies one session; returns `Ok` when it should be replaced (tau changed, or stopping).
+async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), String> {
+    let follower = Follower::new(&mut session);
+    let geom = session.geometry().clone();
+    let info = session.terrain().clone();
+    let extent = crate::flight::extent(&info);
+    let tau = session.tau();
+    if let Ok(mut st) = shared.state.lock() {
+        st.follower = Some(follower);
+        st.epoch += 1;
+        st.geom = Some(geom.clone());
+        st.extent = Some((extent, info.height_range[1]));
+        st.height_range = (info.height_range[0], info.height_range[1]);
+        st.tau = tau;
+        st.status = "connected".into();
+    }
+    let period = Duration::from_secs_f64(1.0 / rate_hz);
+    let mut next_pose = Instant::now();
+    let mut last_sent: Option<Camera> = None;
+    let mut sent_at: HashMap<u64, Instant> = HashMap::new();
+    let mut window: Vec<(Instant, usize)> = Vec::new();
+    loop {
+        if shared.stop.load(Ordering::Relaxed) {
+            session.close().await;
+            return Ok(());
+        }
+        let (cam, want_tau) = shared.wanted.lock().map(|w| *w).unwrap_or((None, tau));
+        if want_tau != tau {
+            session.close().await;
+            return Ok(());
+        }
+        let now = Instant::now();
+        if now >= next_pose {
+            next_pose = now + period;
+            if let Some(c) = cam.filter(|c| Some(*c) != last_sent && c.is_valid()) {
+                let seq = session.send_pose(c).await.map_err(|e| e.to_string())?;
+                sent_at.insert(seq, Instant::now());
+                last_sent = Some(c);
+            }
+        }
+        let until = next_pose.saturating_duration_since(Instant::now());
+        let Ok(applied) = tokio::time::timeout(until, session.next_delta()).await else {
+            continue;
+        };
+        let a = applied.map_err(|e| e.to_string())?;
+        let t = Instant::now();
+        window.push((t, a.bytes));
+        window.retain(|(at, _)| t.duration_since(*at) <= Duration::from_secs(1));
+        let latency = if a.complete {
+            let l = sent_at
+                .remove(&a.pose_seq)
+                .map(|s| t.duration_since(s).as_secs_f64() * 1e3);
+            sent_at.retain(|&k, _| k > a.pose_seq);
+            l
+        } else {
+            None
+        };
+        let ground = last_sent.map(|c| ground_under(&session, c.eye.x, c.eye.y));
+        let stamp = shared.now();
+        if let Ok(mut st) = shared.state.lock() {
+            if let Some(f) = st.follower.as_mut() {
+                let before = session.generation();
+                f.sync(&mut session, stamp);
+                if session.generation() != before {
+                    st.epoch += 1;
+                }
+            }
+            st.triangles = session.mesh().triangle_count();
+            st.bytes_per_s = window.iter().map(|w| w.1 as f64).sum();
+            if latency.is_some() {
+                st.latency_ms = latency;
+            }
+            if ground.is_some() {
+                st.ground = ground.flatten();
+            }
+        }
+    }
+}
+
+/// Height of the cut's active node over world `x`, `y`, metres (`None` off the terrain).
+fn ground_under(session: &Session, x: f32, y: f32) -> Option<f32> {
+    let geom = session.geometry();
+    let (c, r) = geom.frame.to_grid(x, y);
+    let (w, h) = (geom.shape.width(), geom.shape.height());
+    if !(c >= 0.0 && r >= 0.0 && c < w as f32 && r < h as f32) {
+        return None;
+    }
+    let n = session
+        .mirror()
+        .cut()
+        .active_ancestor(&geom.shape, c as u32, r as u32);
+    let d = session.mirror().node(geom, n)?;
+    Some(geom.world_pos(n, d.z).z)
+}
