@@ -47,11 +47,17 @@ pub struct Gpu {
 }
 
 impl Gpu {
-    /// A device without any window: the first adapter wgpu offers (lavapipe on a machine with
-    /// Mesa's software Vulkan and no GPU).
+    /// A device without any window: the first adapter of the primary backends (Vulkan, Metal,
+    /// DX12; lavapipe on a machine with Mesa's software Vulkan and no GPU), else of OpenGL.
+    /// `WGPU_BACKEND` (e.g. `gl`) chooses the backends instead.
     pub fn headless() -> Result<Gpu, RenderError> {
-        let instance = Instance::new(wgpu::InstanceDescriptor::new_without_display_handle());
-        Gpu::with_instance(instance, None)
+        let instance = |backends| {
+            let mut d = wgpu::InstanceDescriptor::new_without_display_handle();
+            d.backends = wgpu::Backends::from_env().unwrap_or(backends);
+            Instance::new(d)
+        };
+        Gpu::with_instance(instance(wgpu::Backends::PRIMARY), None)
+            .or_else(|_| Gpu::with_instance(instance(wgpu::Backends::SECONDARY), None))
     }
 
     /// A device from `instance` that can present to `surface`, if given.
