@@ -136,6 +136,27 @@ pub enum Change {
     Merge(NodeId),
 }
 
+/// Whether a session is connected, readable from other threads while the session itself is
+/// busy reconnecting (a viewer's window shows it).
+#[derive(Debug, Default)]
+pub struct Link {
+    /// Why the session is not connected now; `None` while it is.
+    down: std::sync::Mutex<Option<String>>,
+}
+
+impl Link {
+    /// Why the session is not connected now, or `None` while it is.
+    pub fn down(&self) -> Option<String> {
+        self.down.lock().map(|d| d.clone()).unwrap_or(None)
+    }
+
+    fn set(&self, why: Option<String>) {
+        if let Ok(mut d) = self.down.lock() {
+            *d = why;
+        }
+    }
+}
+
 /// A live session: the connection, the mirror and its mesh.
 pub struct Session {
     /// Where and how to connect.
@@ -164,6 +185,8 @@ pub struct Session {
     changes: Vec<Change>,
     /// Bumped whenever the mirror starts again from the root, so that a renderer rebuilds.
     generation: u64,
+    /// Connected or not, shared.
+    link: std::sync::Arc<Link>,
 }
 
 fn decode(bytes: &[u8]) -> Result<ServerMsg, ClientError> {
@@ -243,7 +266,7 @@ fn closed(code: u16, text: String) -> Result<String, ClientError> {
 impl Session {
     /// Connects and opens a session from the root (retrying within the reconnect deadline).
     pub async fn connect(config: SessionConfig) -> Result<Session, ClientError> {
-        let (ws, welcome, bytes) = Self::establish(&config, None).await?;
+        let (ws, welcome, bytes) = Self::establish(&config, None, &Link::default()).await?;
         let info = welcome.terrain.clone();
         let geom = info
             .geometry()
@@ -267,12 +290,14 @@ impl Session {
             },
             changes: Vec::new(),
             generation: 0,
+            link: std::sync::Arc::new(Link::default()),
         })
     }
 
     async fn establish(
         config: &SessionConfig,
         resume: Option<Resume>,
+        link: &Link,
     ) -> Result<(Ws, relief_proto::msg::Welcome, usize), ClientError> {
         let started = Instant::now();
         let mut wait = config.backoff_initial;
@@ -289,6 +314,7 @@ impl Session {
                 }
                 Opened::Retry(e) => e,
             };
+            link.set(Some(format!("{last}; reconnecting")));
             if started.elapsed() + wait > config.reconnect_deadline {
                 return Err(ClientError::Connect {
                     url: config.url.clone(),
@@ -305,15 +331,16 @@ impl Session {
     async fn reconnect(&mut self, fresh: bool) -> Result<(), ClientError> {
         self.ws = None;
         self.counters.reconnects += 1;
+        self.link.set(Some("connection lost; reconnecting".into()));
         let resume = (!fresh).then(|| Resume {
             terrain_id: self.info.id,
             snapshot: Snapshot::of(&self.geom.shape, self.mirror.cut()),
         });
-        let (ws, w, bytes) = match Self::establish(&self.config, resume).await {
+        let (ws, w, bytes) = match Self::establish(&self.config, resume, &self.link).await {
             // The server refused the snapshot (e.g. it now holds another terrain): start afresh.
             Err(ClientError::Closed { code, text }) if code == CloseReason::BadSnapshot.code() => {
                 tracing::info!("resume refused ({text}); starting from the root");
-                Self::establish(&self.config, None).await?
+                Self::establish(&self.config, None, &self.link).await?
             }
             r => r?,
         };
@@ -336,6 +363,7 @@ impl Session {
         self.max_in_flight = w.max_in_flight;
         self.idle_timeout = idle_of(&w);
         self.ws = Some(ws);
+        self.link.set(None);
         if let Some((_, cam)) = self.last_pose {
             self.send_pose(cam).await?;
         }
@@ -482,6 +510,11 @@ impl Session {
         if let Some(ws) = self.ws.as_mut() {
             let _ = ws.close(None).await;
         }
+    }
+
+    /// The session's connection state, shared (it changes while the session reconnects).
+    pub fn link(&self) -> std::sync::Arc<Link> {
+        self.link.clone()
     }
 
     /// The stream's URL.

@@ -222,7 +222,7 @@ impl App {
             tau,
             st.latency_ms
                 .map_or("-".to_string(), |l| format!("{l:.0} ms")),
-            st.status,
+            Shared::status(&st),
             if self.camera.and_then(|c| c.follow).is_some() {
                 "  |  following ground"
             } else {

@@ -49,6 +49,8 @@ pub struct NetState {
     pub tau: f32,
     /// Connection state in words ("connected", or why not and when the next try is).
     pub status: String,
+    /// The current session's link: while it reconnects by itself, it says why.
+    pub link: Option<Arc<crate::session::Link>>,
 }
 
 impl Shared {
@@ -70,6 +72,14 @@ impl Shared {
         self.clock.elapsed().as_secs_f32()
     }
 
+    /// The connection state in words, for the window's title.
+    pub fn status(st: &NetState) -> String {
+        match st.link.as_ref().and_then(|l| l.down()) {
+            Some(why) => format!("server unreachable: {why}"),
+            None => st.status.clone(),
+        }
+    }
+
     fn set_status(&self, s: impl Into<String>) {
         if let Ok(mut st) = self.state.lock() {
             st.status = s.into();
@@ -85,6 +95,9 @@ pub fn run(shared: Arc<Shared>, config: SessionConfig, rate_hz: f64) {
     {
         Ok(rt) => rt,
         Err(e) => {
+            if let Ok(mut st) = shared.state.lock() {
+                st.link = None;
+            }
             shared.set_status(format!("cannot start the network thread: {e}"));
             return;
         }
@@ -113,6 +126,9 @@ pub fn run(shared: Arc<Shared>, config: SessionConfig, rate_hz: f64) {
             if shared.stop.load(Ordering::Relaxed) {
                 break;
             }
+            if let Ok(mut st) = shared.state.lock() {
+                st.link = None;
+            }
             shared.set_status(format!(
                 "server unreachable ({why}); retrying in {:.0} s",
                 wait.as_secs_f32()
@@ -139,6 +155,7 @@ async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), 
         st.height_range = (info.height_range[0], info.height_range[1]);
         st.tau = tau;
         st.status = "connected".into();
+        st.link = Some(session.link());
     }
     let period = Duration::from_secs_f64(1.0 / rate_hz);
     let mut next_pose = Instant::now();
