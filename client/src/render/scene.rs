@@ -31,7 +31,7 @@ pub const NODE_WORDS: usize = 12;
 /// 32-bit words per cell record: two triangles of node slots.
 pub const CELL_WORDS: usize = 6;
 /// Records per upload page.
-const PAGE_RECORDS: usize = 256;
+const PAGE_RECORDS: usize = 64;
 /// The split time of a node split before anyone was watching: long enough ago that its
 /// children have grown out fully.
 const LONG_AGO: f32 = -1.0e30;
