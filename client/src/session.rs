@@ -522,6 +522,11 @@ impl Session {
         &self.config.url
     }
 
+    /// The session's lens (fixed by the hello).
+    pub fn lens(&self) -> Lens {
+        self.config.lens
+    }
+
     /// The session's screen-space error threshold, pixels.
     pub fn tau(&self) -> f32 {
         self.config.tau

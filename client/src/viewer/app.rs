@@ -18,6 +18,9 @@ use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop, OwnedDisplayHan
 use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{Window, WindowId};
 
+/// How long a window size must hold before a session is opened for it (the lens is part of
+/// the hello: the server's pixel errors are for the session's viewport).
+const RESIZE_SETTLE: Duration = Duration::from_millis(400);
 /// Sky colour, linear (also the clear colour).
 const SKY: [f64; 3] = [0.36, 0.47, 0.62];
 
@@ -61,6 +64,8 @@ struct App {
     fps: f64,
     /// When the viewer started.
     started: Instant,
+    /// The window's new size and when it last changed, until it is sent to the server.
+    resized: Option<((u32, u32), Instant)>,
     /// A fatal error to report after the loop.
     error: Option<ViewerError>,
 }
@@ -69,7 +74,8 @@ struct App {
 pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
     let event_loop = EventLoop::new().map_err(|e| ViewerError::Window(e.to_string()))?;
     event_loop.set_control_flow(ControlFlow::Poll);
-    let shared = Shared::new(opts.session.tau);
+    let lens = opts.session.lens;
+    let shared = Shared::new(opts.session.tau, (lens.width, lens.height));
     let net_thread = {
         let (shared, config, rate) = (shared.clone(), opts.session.clone(), opts.rate_hz);
         std::thread::Builder::new()
@@ -91,6 +97,7 @@ pub fn run(opts: ViewerOptions) -> Result<(), ViewerError> {
         fps_window: (0, now),
         fps: 0.0,
         started: now,
+        resized: None,
         error: None,
     };
     let ran = event_loop.run_app(&mut app);
@@ -162,8 +169,8 @@ impl App {
             KeyCode::Equal | KeyCode::NumpadAdd | KeyCode::Minus | KeyCode::NumpadSubtract => {
                 let up = matches!(code, KeyCode::Equal | KeyCode::NumpadAdd);
                 if let Ok(mut w) = self.shared.wanted.lock() {
-                    let t = if up { w.1 * 1.25 } else { w.1 / 1.25 };
-                    w.1 = t.clamp(0.25, 64.0);
+                    let t = if up { w.tau * 1.25 } else { w.tau / 1.25 };
+                    w.tau = t.clamp(0.25, 64.0);
                 }
             }
             _ => {}
@@ -190,7 +197,14 @@ impl App {
         }
         let camera = self.camera.map(|c| c.camera);
         if let Ok(mut w) = self.shared.wanted.lock() {
-            w.0 = camera;
+            w.camera = camera;
+            // A new size goes to the server once the window has kept it for a moment.
+            if let Some((size, at)) = self.resized
+                && now.duration_since(at) >= RESIZE_SETTLE
+            {
+                w.size = size;
+                self.resized = None;
+            }
         }
         let epoch = st.epoch;
         let (tau, range, geom_fog) = (
@@ -315,6 +329,7 @@ impl ApplicationHandler for App {
                     s.config.width = size.width;
                     s.config.height = size.height;
                     s.surface.configure(&s.gpu.device, &s.config);
+                    self.resized = Some(((size.width, size.height), Instant::now()));
                 }
             }
             WindowEvent::KeyboardInput {

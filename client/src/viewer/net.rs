@@ -6,7 +6,7 @@
 use crate::render::Follower;
 use crate::session::{Session, SessionConfig};
 use relief_proto::terrain::TerrainGeometry;
-use relief_proto::view::Camera;
+use relief_proto::view::{Camera, Lens};
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
@@ -16,12 +16,24 @@ use std::time::{Duration, Instant};
 pub struct Shared {
     /// The scene and what the title shows.
     pub state: Mutex<NetState>,
-    /// The camera the window wants streamed, and the tau it asks for.
-    pub wanted: Mutex<(Option<Camera>, f32)>,
+    /// What the window asks the network side for.
+    pub wanted: Mutex<Wanted>,
     /// Set by the window to end the thread.
     pub stop: AtomicBool,
     /// The clock split times are stamped with.
     pub clock: Instant,
+}
+
+/// What the window asks for: a change of tau or size starts a new session, since both are
+/// fixed by the hello.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Wanted {
+    /// The camera to stream (`None` until the terrain is known).
+    pub camera: Option<Camera>,
+    /// Screen-space error threshold, pixels.
+    pub tau: f32,
+    /// Viewport width and height, pixels.
+    pub size: (u32, u32),
 }
 
 /// The network side's state, read by the window each frame.
@@ -54,15 +66,19 @@ pub struct NetState {
 }
 
 impl Shared {
-    /// Fresh shared state asking for `tau`.
-    pub fn new(tau: f32) -> Arc<Shared> {
+    /// Fresh shared state asking for `tau` at `size`.
+    pub fn new(tau: f32, size: (u32, u32)) -> Arc<Shared> {
         Arc::new(Shared {
             state: Mutex::new(NetState {
                 status: "connecting".into(),
                 tau,
                 ..NetState::default()
             }),
-            wanted: Mutex::new((None, tau)),
+            wanted: Mutex::new(Wanted {
+                camera: None,
+                tau,
+                size,
+            }),
             stop: AtomicBool::new(false),
             clock: Instant::now(),
         })
@@ -105,9 +121,18 @@ pub fn run(shared: Arc<Shared>, config: SessionConfig, rate_hz: f64) {
     rt.block_on(async move {
         let mut wait = Duration::from_millis(500);
         while !shared.stop.load(Ordering::Relaxed) {
-            let tau = shared.wanted.lock().map(|w| w.1).unwrap_or(config.tau);
+            let (tau, size) = shared
+                .wanted
+                .lock()
+                .map(|w| (w.tau, w.size))
+                .unwrap_or((config.tau, (config.lens.width, config.lens.height)));
             let cfg = SessionConfig {
                 tau,
+                lens: Lens {
+                    width: size.0,
+                    height: size.1,
+                    ..config.lens
+                },
                 mesh: true,
                 record_changes: true,
                 reconnect_deadline: Duration::from_secs(5),
@@ -140,13 +165,15 @@ pub fn run(shared: Arc<Shared>, config: SessionConfig, rate_hz: f64) {
     });
 }
 
-/// Flies one session; returns `Ok` when it should be replaced (tau changed, or stopping).
+/// Flies one session; returns `Ok` when it should be replaced (tau or size changed, or
+/// stopping).
 async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), String> {
     let follower = Follower::new(&mut session);
     let geom = session.geometry().clone();
     let info = session.terrain().clone();
     let extent = crate::flight::extent(&info);
     let tau = session.tau();
+    let size = (session.lens().width, session.lens().height);
     if let Ok(mut st) = shared.state.lock() {
         st.follower = Some(follower);
         st.epoch += 1;
@@ -167,8 +194,11 @@ async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), 
             session.close().await;
             return Ok(());
         }
-        let (cam, want_tau) = shared.wanted.lock().map(|w| *w).unwrap_or((None, tau));
-        if want_tau != tau {
+        let Ok(want) = shared.wanted.lock().map(|w| *w) else {
+            return Ok(());
+        };
+        let cam = want.camera;
+        if want.tau != tau || want.size != size {
             session.close().await;
             return Ok(());
         }
