@@ -9,8 +9,8 @@ use relief_client::render::bench::{self, RenderBenchOptions};
 use relief_client::render::shot::{self, ShotOptions, ShotPose};
 use relief_client::session::SessionConfig;
 use relief_client::viewer::{self, ViewerOptions};
-use relief_proto::view::Lens;
 use relief_proto::path::PathKind;
+use relief_proto::view::Lens;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -25,9 +25,9 @@ struct Cli {
     command: Command,
 }
 
-/// What every streaming command asks of the server.
+/// The server and the error threshold: what every command that opens a session names.
 #[derive(clap::Args)]
-struct StreamArgs {
+struct ServerArgs {
     /// The stream's URL.
     #[arg(
         long,
@@ -38,6 +38,26 @@ struct StreamArgs {
     /// Screen-space error threshold in pixels.
     #[arg(long, default_value_t = 1.0)]
     tau: f32,
+}
+
+impl ServerArgs {
+    fn session(&self) -> anyhow::Result<SessionConfig> {
+        anyhow::ensure!(
+            self.tau.is_finite() && self.tau > 0.0,
+            "--tau must be a positive number of pixels"
+        );
+        Ok(SessionConfig {
+            tau: self.tau,
+            ..SessionConfig::new(&self.server)
+        })
+    }
+}
+
+/// What every streaming command asks of the server.
+#[derive(clap::Args)]
+struct StreamArgs {
+    #[command(flatten)]
+    target: ServerArgs,
     /// Bandwidth budget per session in bytes per second [default: none].
     #[arg(long)]
     budget: Option<u32>,
@@ -53,9 +73,8 @@ impl StreamArgs {
             "--rate must be 0 or more"
         );
         Ok(SessionConfig {
-            tau: self.tau,
             budget: self.budget,
-            ..SessionConfig::new(&self.server)
+            ..self.target.session()?
         })
     }
 }
@@ -63,16 +82,8 @@ impl StreamArgs {
 /// What every drawing command asks for.
 #[derive(clap::Args)]
 struct ViewArgs {
-    /// The stream's URL.
-    #[arg(
-        long,
-        env = "RELIEF_SERVER",
-        default_value = "ws://127.0.0.1:8080/v1/stream"
-    )]
-    server: String,
-    /// Screen-space error threshold in pixels.
-    #[arg(long, default_value_t = 1.0)]
-    tau: f32,
+    #[command(flatten)]
+    target: ServerArgs,
     /// Image or window size, WxH.
     #[arg(long, default_value = "1280x720", value_parser = shot::parse_size)]
     size: (u32, u32),
@@ -87,22 +98,17 @@ struct ViewArgs {
 impl ViewArgs {
     fn session(&self) -> anyhow::Result<SessionConfig> {
         anyhow::ensure!(
-            self.tau.is_finite() && self.tau > 0.0,
-            "--tau must be a positive number of pixels"
-        );
-        anyhow::ensure!(
             self.fov.is_finite() && (1.0..=170.0).contains(&self.fov),
             "--fov must be 1 to 170 degrees"
         );
         Ok(SessionConfig {
-            tau: self.tau,
             lens: Lens {
                 width: self.size.0,
                 height: self.size.1,
                 fov_y_deg: self.fov,
                 near: 1.0,
             },
-            ..SessionConfig::new(&self.server)
+            ..self.target.session()?
         })
     }
 }
@@ -246,7 +252,9 @@ fn run() -> anyhow::Result<()> {
             background,
         } => {
             let pose = match (camera, path, frame) {
-                (Some(c), _, _) => ShotPose::Camera(shot::parse_camera(&c).map_err(anyhow::Error::msg)?),
+                (Some(c), _, _) => {
+                    ShotPose::Camera(shot::parse_camera(&c).map_err(anyhow::Error::msg)?)
+                }
                 (None, Some(kind), Some(frame)) => ShotPose::Path { kind, frame },
                 _ => anyhow::bail!("give either --camera x,y,z,yaw,pitch or --path P --frame K"),
             };

@@ -92,7 +92,10 @@ async fn golden_image_of_the_committed_crop() {
         actual.display()
     );
     // The comparison can fail: the wireframe overlay of the same view is far outside it.
-    assert!(!matches(&wire, &want), "the tolerance cannot tell a wireframe apart");
+    assert!(
+        !matches(&wire, &want),
+        "the tolerance cannot tell a wireframe apart"
+    );
     s.session.close().await;
     server.stop().await;
 }
@@ -205,7 +208,11 @@ impl Rig {
             .active_nodes(&geom.shape)
             .into_iter()
             .map(|n| {
-                let slot = self.follower.scene.slot_of(geom, n).expect("active nodes are held");
+                let slot = self
+                    .follower
+                    .scene
+                    .slot_of(geom, n)
+                    .expect("active nodes are held");
                 (n, all[slot as usize])
             })
             .collect()
@@ -268,10 +275,19 @@ async fn no_background_shows_through_the_terrain() {
             frames += 1;
         }
     }
-    eprintln!("{frames} frames, {morphing} vertices mid-geomorph, {} with holes", holes.len());
-    assert!(holes.is_empty(), "background through the terrain: {holes:?}");
+    eprintln!(
+        "{frames} frames, {morphing} vertices mid-geomorph, {} with holes",
+        holes.len()
+    );
+    assert!(
+        holes.is_empty(),
+        "background through the terrain: {holes:?}"
+    );
     assert!(frames >= 60, "{frames} frames checked");
-    assert!(morphing > 100, "only {morphing} vertices were mid-geomorph: not a test of it");
+    assert!(
+        morphing > 100,
+        "only {morphing} vertices were mid-geomorph: not a test of it"
+    );
     rig.session.close().await;
     server.stop().await;
 }
@@ -348,8 +364,14 @@ async fn no_vertex_jumps_at_splits_and_merges() {
     eprintln!(
         "{checked} split or merged vertices: {jumped} jumped; {jumped_error_only} without the growth cap"
     );
-    assert!(checked > 10_000, "only {checked} split or merged vertices checked");
-    assert_eq!(jumped, 0, "{jumped} of {checked} vertices jumped at a split or merge");
+    assert!(
+        checked > 10_000,
+        "only {checked} split or merged vertices checked"
+    );
+    assert_eq!(
+        jumped, 0,
+        "{jumped} of {checked} vertices jumped at a split or merge"
+    );
     assert!(
         jumped_error_only > 0,
         "the check cannot see a jump: without the growth cap, late splits must jump"

@@ -84,17 +84,16 @@ impl Gpu {
             });
         }
         let limits = adapter.limits();
-        let (device, queue) =
-            pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-                label: Some("relief"),
-                required_features: wgpu::Features::empty(),
-                required_limits: limits,
-                ..Default::default()
-            }))
-            .map_err(|e| RenderError::Device {
-                adapter: name,
-                detail: e.to_string(),
-            })?;
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("relief"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits,
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::Device {
+            adapter: name,
+            detail: e.to_string(),
+        })?;
         Ok(Gpu {
             instance,
             adapter,

@@ -302,10 +302,14 @@ impl Scene {
         let mut rec = [NONE; CELL_WORDS];
         for (k, t) in tris.iter().enumerate() {
             let Some(t) = t else { continue };
-            let slots = t.0.map(|n| self.node_slot.get(&geom.shape.index(n)).copied());
+            let slots =
+                t.0.map(|n| self.node_slot.get(&geom.shape.index(n)).copied());
             // Every vertex of a triangle of the mesh is held; if not, drop the triangle whole
             // rather than draw it with a missing corner.
-            debug_assert!(slots.iter().all(Option::is_some), "cell {cell:?}: vertex not held");
+            debug_assert!(
+                slots.iter().all(Option::is_some),
+                "cell {cell:?}: vertex not held"
+            );
             if let [Some(a), Some(b), Some(c)] = slots {
                 rec[k * 3..k * 3 + 3].copy_from_slice(&[a, b, c]);
             }

@@ -8,8 +8,8 @@
 //! settled.
 
 use super::follow::Follower;
-use super::height_range;
 use super::gpu::{Gpu, RenderError};
+use super::height_range;
 use super::offscreen::Offscreen;
 use super::renderer::{FrameParams, Renderer};
 use crate::flight::{PathSpec, extent, server_path};

@@ -245,7 +245,8 @@ impl App {
         );
         drop(st);
         let frame = match s.surface.get_current_texture() {
-            wgpu::CurrentSurfaceTexture::Success(f) | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
+            wgpu::CurrentSurfaceTexture::Success(f)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(f) => f,
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
                 s.surface.configure(&s.gpu.device, &s.config);
                 return;
@@ -349,7 +350,9 @@ impl ApplicationHandler for App {
                 self.drag.0 = state == ElementState::Pressed;
             }
             WindowEvent::CursorMoved { position, .. } => {
-                if let (true, Some((x, y)), Some(c)) = (self.drag.0, self.drag.1, self.camera.as_mut()) {
+                if let (true, Some((x, y)), Some(c)) =
+                    (self.drag.0, self.drag.1, self.camera.as_mut())
+                {
                     c.turn((position.x - x) as f32, (position.y - y) as f32);
                 }
                 self.drag.1 = Some((position.x, position.y));
