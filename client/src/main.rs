@@ -5,6 +5,7 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use relief_client::fly::{self, FlyOptions};
 use relief_client::load::{self, LoadOptions, LoadPath};
+use relief_client::render::MorphStage;
 use relief_client::render::bench::{self, RenderBenchOptions};
 use relief_client::render::shot::{self, ShotOptions, ShotPose};
 use relief_client::session::SessionConfig;
@@ -93,6 +94,10 @@ struct ViewArgs {
     /// Draw triangle edges over the shading.
     #[arg(long)]
     wireframe: bool,
+    /// Where the geomorph runs: `compute` (once per node in a compute pass before the draw) or
+    /// `vertex` (in the vertex shader, per triangle corner). Same image; `compute` is cheaper.
+    #[arg(long, value_enum, default_value = "compute")]
+    morph: MorphStage,
 }
 
 impl ViewArgs {
@@ -263,6 +268,7 @@ fn run() -> anyhow::Result<()> {
                 pose,
                 wireframe: view.wireframe,
                 background: shot::parse_colour(&background).map_err(anyhow::Error::msg)?,
+                morph: view.morph,
             };
             let (img, report) = rt.block_on(shot::shot(&opts))?;
             img.save(&out)
@@ -286,6 +292,7 @@ fn run() -> anyhow::Result<()> {
                 session: view.session()?,
                 path,
                 poses,
+                morph: view.morph,
             };
             let report = rt.block_on(bench::render_bench(&opts))?;
             if json {
@@ -308,6 +315,7 @@ fn run() -> anyhow::Result<()> {
                 rate_hz: rate,
                 wireframe: view.wireframe,
                 exit_after: exit_after.map(Duration::from_secs_f64),
+                morph: view.morph,
             };
             drop(rt);
             viewer::run(opts)?;

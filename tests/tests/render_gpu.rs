@@ -5,7 +5,9 @@
 use glam::Vec3;
 use relief_client::render::offscreen::{FORMAT, Offscreen};
 use relief_client::render::shot::{ShotPose, draw, frame_params, stream_to};
-use relief_client::render::{Follower, FrameParams, Gpu, Renderer, fog_distance, height_range};
+use relief_client::render::{
+    Follower, FrameParams, Gpu, MorphStage, Renderer, fog_distance, height_range,
+};
 use relief_client::session::{Session, SessionConfig};
 use relief_proto::mesh::MorphRule;
 use relief_proto::path::PATH_HZ;
@@ -70,6 +72,11 @@ async fn golden_image_of_the_committed_crop() {
     let mut s = stream_to(config, ShotPose::Camera(cam)).await.unwrap();
     let params = frame_params(&s, l, false, [158, 179, 204]);
     let img = draw(&gpu, &mut s, &params).unwrap();
+    let per_vertex = FrameParams {
+        morph: MorphStage::Vertex,
+        ..params
+    };
+    let img_vertex = draw(&gpu, &mut s, &per_vertex).unwrap();
     let wire_params = frame_params(&s, l, true, [158, 179, 204]);
     let wire = draw(&gpu, &mut s, &wire_params).unwrap();
     let golden = golden_path();
@@ -90,6 +97,12 @@ async fn golden_image_of_the_committed_crop() {
          this render is at {}",
         gpu.describe(),
         actual.display()
+    );
+    // The geomorph in the vertex shader draws the same picture.
+    let (far, mean) = difference(&img_vertex, &want);
+    assert!(
+        matches(&img_vertex, &want),
+        "per-vertex geomorph: {far} pixels off, mean {mean:.2}"
     );
     // The comparison can fail: the wireframe overlay of the same view is far outside it.
     assert!(
@@ -194,6 +207,7 @@ impl Rig {
             encode_srgb: true,
             background: bg.map(|c| f64::from(c) / 255.0),
             fog_distance: fog_distance(self.session.geometry()),
+            morph: MorphStage::Compute,
         }
     }
 

@@ -10,7 +10,7 @@
 use super::follow::Follower;
 use super::gpu::{Gpu, RenderError};
 use super::offscreen::{FORMAT, Offscreen};
-use super::renderer::{FrameParams, Renderer};
+use super::renderer::{FrameParams, MorphStage, Renderer};
 use super::shot::ShotError;
 use crate::flight::{PathSpec, extent, quantile, server_path};
 use crate::session::{Session, SessionConfig};
@@ -28,6 +28,8 @@ pub struct RenderBenchOptions {
     pub path: PathKind,
     /// Poses to fly (the path's first ones; 0: all).
     pub poses: usize,
+    /// Where the geomorph is evaluated.
+    pub morph: MorphStage,
 }
 
 /// Median and 99th percentile of a series.
@@ -121,7 +123,7 @@ pub async fn render_bench(opts: &RenderBenchOptions) -> Result<RenderBenchReport
         upload.push(u);
         total.push(a + s + u);
         bytes.push(b as f64);
-        let params = frame_params(&session, *cam, lens, now + 1.0 / PATH_HZ);
+        let params = frame_params(&session, opts.morph, *cam, lens, now + 1.0 / PATH_HZ);
         let t = Instant::now();
         renderer.render(&gpu, &target.view, &params);
         gpu.wait();
@@ -155,6 +157,7 @@ pub async fn render_bench(opts: &RenderBenchOptions) -> Result<RenderBenchReport
 
 fn frame_params(
     session: &Session,
+    morph: MorphStage,
     camera: relief_proto::view::Camera,
     lens: relief_proto::view::Lens,
     now: f32,
@@ -169,6 +172,7 @@ fn frame_params(
         encode_srgb: true,
         background: [0.62, 0.70, 0.80],
         fog_distance: super::fog_distance(session.geometry()),
+        morph,
     }
 }
 

@@ -22,7 +22,7 @@ pub mod shot;
 pub use follow::Follower;
 pub use gpu::{Gpu, RenderError};
 pub use offscreen::Offscreen;
-pub use renderer::{FrameParams, Renderer};
+pub use renderer::{FrameParams, MorphStage, Renderer};
 pub use scene::Scene;
 
 use relief_proto::terrain::TerrainGeometry;

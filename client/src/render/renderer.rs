@@ -1,11 +1,12 @@
 //! The GPU side: buffers mirroring a [`Scene`]'s pools, the geomorph compute pass and the
 //! terrain render pass (shaders in `terrain.wgsl`).
 //!
-//! Each frame runs two passes. The compute pass evaluates every node's drawn position for this
-//! frame's camera (the geomorph down the chain of ancestors, paper 000, section 3.6); the render
-//! pass pulls triangles' node slots from the cell records and their positions from the compute
-//! pass's output. Nothing per vertex is uploaded per frame: only the uniform block, and after a
-//! delta the pages of records it changed.
+//! Each frame is one render pass. The vertex shader pulls triangles' node slots from the cell
+//! records and geomorphs each vertex from its node's record and its ancestors' for this frame's
+//! camera (paper 000, section 3.6, down the chain of ancestors). Nothing per vertex is uploaded
+//! per frame: only the uniform block, and after a delta the pages of records it changed. A
+//! compute pass runs the same geomorph function for every node slot and writes the positions
+//! out, for tests that read back what is drawn ([`Renderer::morph_only`]).
 
 use super::gpu::{Gpu, RenderError};
 use super::scene::{CELL_WORDS, Pool, Scene};
@@ -18,6 +19,19 @@ use wgpu::util::DeviceExt;
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Bytes of the uniform block (see `Frame` in `terrain.wgsl`).
 const FRAME_BYTES: usize = 60 * 4;
+
+/// Where the geomorph is evaluated. Both run the same WGSL function and draw the same image
+/// (the golden-image test checks both).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum MorphStage {
+    /// Once per node in a compute pass before the draw; the vertex shader reads the result.
+    /// Each node is shared by about six triangle corners, so this does a sixth of the work
+    /// (on lavapipe: 33 ms against 107 ms a frame on the embedded crop at 1280x720).
+    #[default]
+    Compute,
+    /// In the vertex shader, per triangle corner.
+    Vertex,
+}
 
 /// What one frame is drawn with.
 #[derive(Clone, Copy, Debug)]
@@ -40,6 +54,8 @@ pub struct FrameParams {
     pub background: [f64; 3],
     /// Distance at which the haze reaches about two thirds of its strength, metres.
     pub fog_distance: f32,
+    /// Where the geomorph is evaluated.
+    pub morph: MorphStage,
 }
 
 /// GPU buffers, pipelines and bind groups for one scene.
@@ -48,7 +64,7 @@ pub struct Renderer {
     nodes: GpuPool,
     /// Cell records.
     cells: GpuPool,
-    /// Drawn positions, one `vec4<f32>` per node slot, written by the compute pass.
+    /// Drawn positions, one `vec4<f32>` per node slot, written by the compute pass (tests).
     drawn: wgpu::Buffer,
     /// The uniform block.
     frame: wgpu::Buffer,
@@ -56,14 +72,16 @@ pub struct Renderer {
     layout_common: wgpu::BindGroupLayout,
     /// Group 1: drawn positions, written.
     layout_morph: wgpu::BindGroupLayout,
-    /// Group 2: drawn positions and cells, read.
+    /// Group 2: cells and drawn positions, read.
     layout_draw: wgpu::BindGroupLayout,
     /// Bind groups, remade when a buffer grows.
     groups: Option<[wgpu::BindGroup; 3]>,
     /// The geomorph pass.
     morph: wgpu::ComputePipeline,
-    /// The terrain pass.
+    /// The terrain pass, geomorphing per vertex.
     draw: wgpu::RenderPipeline,
+    /// The terrain pass, reading the geomorph pass's output.
+    draw_pre: wgpu::RenderPipeline,
     /// Depth buffer and its size.
     depth: Option<(wgpu::TextureView, (u32, u32))>,
 }
@@ -141,7 +159,11 @@ impl Renderer {
                     },
                     count: None,
                 },
-                storage(1, true, wgpu::ShaderStages::COMPUTE),
+                storage(
+                    1,
+                    true,
+                    wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::VERTEX,
+                ),
             ],
         });
         let layout_morph = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -177,42 +199,45 @@ impl Renderer {
             compilation_options: Default::default(),
             cache: None,
         });
-        let draw = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("relief terrain"),
-            layout: Some(&draw_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Geomorphs may fold a triangle for a moment: draw both faces.
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Greater),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let pipeline = |vs: &str| {
+            dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("relief terrain"),
+                layout: Some(&draw_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some(vs),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    // Geomorphs may fold a triangle for a moment: draw both faces.
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Greater),
+                    stencil: Default::default(),
+                    bias: Default::default(),
+                }),
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let (draw, draw_pre) = (pipeline("vs"), pipeline("vs_pre"));
         let frame = dev.create_buffer(&wgpu::BufferDescriptor {
             label: Some("relief frame"),
             size: FRAME_BYTES as u64,
@@ -235,6 +260,7 @@ impl Renderer {
             groups: None,
             morph,
             draw,
+            draw_pre,
             depth: None,
         }
     }
@@ -275,16 +301,23 @@ impl Renderer {
                 dev.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("relief draw"),
                     layout: &self.layout_draw,
-                    entries: &[entry(0, &self.drawn), entry(1, &self.cells.buffer)],
+                    entries: &[entry(0, &self.cells.buffer), entry(1, &self.drawn)],
                 }),
             ]
         })
     }
 
-    /// Encodes the geomorph pass for `f` into `enc`.
-    fn encode_morph(&mut self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder, f: &FrameParams) {
+    /// Runs the geomorph pass alone, for every node slot, into the drawn-position buffer (for
+    /// tests that read back what is drawn, [`Renderer::read_drawn`]).
+    pub fn morph_only(&mut self, gpu: &Gpu, f: &FrameParams) {
         gpu.queue
             .write_buffer(&self.frame, 0, bytemuck::cast_slice(&frame_block(f)));
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        self.encode_morph(gpu, &mut enc);
+        gpu.queue.submit([enc.finish()]);
+    }
+
+    fn encode_morph(&mut self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder) {
         let workgroups = self.nodes.records.div_ceil(64) as u32;
         let (x, y) = (workgroups.min(65_535), workgroups.div_ceil(65_535));
         let morph = self.morph.clone();
@@ -299,14 +332,7 @@ impl Renderer {
         pass.dispatch_workgroups(x, y, 1);
     }
 
-    /// Runs the geomorph pass alone (for tests that read the drawn positions back).
-    pub fn morph_only(&mut self, gpu: &Gpu, f: &FrameParams) {
-        let mut enc = gpu.device.create_command_encoder(&Default::default());
-        self.encode_morph(gpu, &mut enc, f);
-        gpu.queue.submit([enc.finish()]);
-    }
-
-    /// Draws the scene into `target` (of the lens's size): geomorph, then terrain.
+    /// Draws the scene into `target` (of the lens's size).
     pub fn render(&mut self, gpu: &Gpu, target: &wgpu::TextureView, f: &FrameParams) {
         let size = (f.lens.width.max(1), f.lens.height.max(1));
         if self.depth.as_ref().is_none_or(|d| d.1 != size) {
@@ -326,10 +352,17 @@ impl Renderer {
             });
             self.depth = Some((tex.create_view(&Default::default()), size));
         }
+        gpu.queue
+            .write_buffer(&self.frame, 0, bytemuck::cast_slice(&frame_block(f)));
         let mut enc = gpu.device.create_command_encoder(&Default::default());
-        self.encode_morph(gpu, &mut enc, f);
+        let draw = match f.morph {
+            MorphStage::Compute => {
+                self.encode_morph(gpu, &mut enc);
+                self.draw_pre.clone()
+            }
+            MorphStage::Vertex => self.draw.clone(),
+        };
         let vertices = (self.cells.records * CELL_WORDS) as u32;
-        let draw = self.draw.clone();
         let groups = self.groups(gpu).clone();
         let depth = &self.depth.as_ref().expect("made above").0;
         {
@@ -365,7 +398,8 @@ impl Renderer {
         gpu.queue.submit([enc.finish()]);
     }
 
-    /// The drawn positions of the last geomorph pass, one per node slot (waits for the GPU).
+    /// The drawn positions of the last [`Renderer::morph_only`], one per node slot (waits for
+    /// the GPU).
     pub fn read_drawn(&self, gpu: &Gpu) -> Result<Vec<Vec3>, RenderError> {
         let bytes = read_buffer(gpu, &self.drawn, (self.nodes.records * 16) as u64)?;
         let floats: Vec<f32> = bytes

@@ -11,7 +11,7 @@ use super::follow::Follower;
 use super::gpu::{Gpu, RenderError};
 use super::height_range;
 use super::offscreen::Offscreen;
-use super::renderer::{FrameParams, Renderer};
+use super::renderer::{FrameParams, MorphStage, Renderer};
 use crate::flight::{PathSpec, extent, server_path};
 use crate::http::HttpError;
 use crate::session::{ClientError, Session, SessionConfig};
@@ -44,6 +44,8 @@ pub struct ShotOptions {
     pub wireframe: bool,
     /// Clear colour, 8-bit RGB.
     pub background: [u8; 3],
+    /// Where the geomorph is evaluated.
+    pub morph: MorphStage,
 }
 
 /// What a shot drew.
@@ -148,6 +150,7 @@ pub fn frame_params(s: &Streamed, lens: Lens, wireframe: bool, background: [u8; 
         encode_srgb: true,
         background: background.map(|c| f64::from(c) / 255.0),
         fog_distance: super::fog_distance(s.session.geometry()),
+        morph: MorphStage::default(),
     }
 }
 
@@ -168,7 +171,10 @@ pub async fn shot(opts: &ShotOptions) -> Result<(image::RgbaImage, ShotReport), 
     let gpu = Gpu::headless()?;
     let lens = opts.session.lens;
     let mut s = stream_to(opts.session.clone(), opts.pose).await?;
-    let params = frame_params(&s, lens, opts.wireframe, opts.background);
+    let params = FrameParams {
+        morph: opts.morph,
+        ..frame_params(&s, lens, opts.wireframe, opts.background)
+    };
     let img = draw(&gpu, &mut s, &params)?;
     let c = s.session.counters();
     let report = ShotReport {

@@ -1,5 +1,5 @@
-// Relief's terrain shaders: the geomorph (compute), vertex pulling (vertex) and shading
-// (fragment). The records are written by `scene.rs`; the morph is the formula of
+// Relief's terrain shaders: vertex pulling with the geomorph (vertex), shading (fragment), and
+// the same geomorph written out for tests (compute). The records are written by `scene.rs`; the morph is the formula of
 // `relief_proto::mesh::morph`, which is its reference (paper 000, section 3.6).
 
 const NONE: u32 = 0xffffffffu;
@@ -40,8 +40,8 @@ struct Node {
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> nodes: array<Node>;
 @group(1) @binding(0) var<storage, read_write> drawn_out: array<vec4<f32>>;
-@group(2) @binding(0) var<storage, read> drawn: array<vec4<f32>>;
-@group(2) @binding(1) var<storage, read> cells: array<u32>;
+@group(2) @binding(0) var<storage, read> cells: array<u32>;
+@group(2) @binding(1) var<storage, read> drawn: array<vec4<f32>>;
 
 // Screen error of a box (relief_proto::view::ViewState::error_of).
 fn screen_error(b0: vec3<f32>, b1: vec3<f32>, err: f32) -> f32 {
@@ -78,13 +78,9 @@ fn alpha(p: Node) -> f32 {
     return a;
 }
 
-// Where each node is drawn this frame: D(n) = D(p) + alpha(p) (P(n) - D(p)), walked upwards.
-@compute @workgroup_size(64)
-fn morph(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = id.x + id.y * groups.x * 64u;
-    if (i >= arrayLength(&nodes)) {
-        return;
-    }
+// Where node `i` is drawn this frame: D(n) = D(p) + alpha(p) (P(n) - D(p)), walked upwards
+// from the node, stopping at the first ancestor whose alpha is 1.
+fn drawn_position(i: u32) -> vec3<f32> {
     var cur = i;
     var out = vec3<f32>(0.0);
     var w = 1.0;
@@ -102,7 +98,18 @@ fn morph(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
         }
         cur = n.parent;
     }
-    drawn_out[i] = vec4<f32>(out, 1.0);
+    return out;
+}
+
+// The same positions for every node slot, written out once per frame: `vs_pre` reads them
+// (each node is shared by about six triangle corners), and tests read them back.
+@compute @workgroup_size(64)
+fn morph(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = id.x + id.y * groups.x * 64u;
+    if (i >= arrayLength(&nodes)) {
+        return;
+    }
+    drawn_out[i] = vec4<f32>(drawn_position(i), 1.0);
 }
 
 struct VOut {
@@ -116,8 +123,7 @@ struct VOut {
 };
 
 // Vertex pulling: the vertex index walks the cell records, three slots a triangle.
-@vertex
-fn vs(@builtin(vertex_index) vi: u32) -> VOut {
+fn pulled(vi: u32, morph_here: bool) -> VOut {
     var o: VOut;
     let corner = vi % 3u;
     o.bary = vec3<f32>(f32(corner == 0u), f32(corner == 1u), f32(corner == 2u));
@@ -129,12 +135,29 @@ fn vs(@builtin(vertex_index) vi: u32) -> VOut {
         o.height = 0.0;
         return o;
     }
-    let p = drawn[slot].xyz;
+    var p: vec3<f32>;
+    if (morph_here) {
+        p = drawn_position(slot);
+    } else {
+        p = drawn[slot].xyz;
+    }
     let rel = p - frame.eye.xyz;
     o.clip = frame.view_proj * vec4<f32>(rel, 1.0);
     o.rel = rel;
     o.height = p.z;
     return o;
+}
+
+// Each vertex geomorphed here, from its ancestors' screen errors for this frame's camera.
+@vertex
+fn vs(@builtin(vertex_index) vi: u32) -> VOut {
+    return pulled(vi, true);
+}
+
+// Each vertex at the position the `morph` pass computed for its node this frame.
+@vertex
+fn vs_pre(@builtin(vertex_index) vi: u32) -> VOut {
+    return pulled(vi, false);
 }
 
 // Height colour ramp: lowland green, upland olive, brown, grey rock, snow.

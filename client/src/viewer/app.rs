@@ -266,6 +266,7 @@ impl App {
                     encode_srgb: !s.config.format.is_srgb(),
                     background: SKY,
                     fog_distance: geom_fog,
+                    morph: self.opts.morph,
                 };
                 r.render(&s.gpu, &view, &params);
             }

@@ -27,6 +27,8 @@ pub struct ViewerOptions {
     pub wireframe: bool,
     /// Close by itself after this long.
     pub exit_after: Option<Duration>,
+    /// Where the geomorph is evaluated.
+    pub morph: crate::render::MorphStage,
 }
 
 /// Why the viewer could not run.
