@@ -193,7 +193,8 @@ pub fn markdown(stages: &[StageReport], knee_p99_ms: f64, plots: &[(&str, &str)]
     }
     match knee(stages, knee_p99_ms) {
         Some((n, why)) => {
-            let _ = writeln!(s, "\n**Knee:** {n} sessions ({why}).");
+            let plural = if n == 1 { "" } else { "s" };
+            let _ = writeln!(s, "\n**Knee:** at {n} session{plural} ({why}).");
         }
         None => {
             let _ = writeln!(
