@@ -243,6 +243,16 @@ fn main() -> std::process::ExitCode {
     }
 }
 
+/// Prints `report` as one line of JSON (`compact`) or indented.
+fn print_json(report: &impl serde::Serialize, compact: bool) -> anyhow::Result<()> {
+    if compact {
+        println!("{}", serde_json::to_string(report)?);
+    } else {
+        println!("{}", serde_json::to_string_pretty(report)?);
+    }
+    Ok(())
+}
+
 fn run() -> anyhow::Result<()> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
@@ -295,11 +305,7 @@ fn run() -> anyhow::Result<()> {
                 morph: view.morph,
             };
             let report = rt.block_on(bench::render_bench(&opts))?;
-            if json {
-                println!("{}", serde_json::to_string(&report)?);
-            } else {
-                println!("{}", serde_json::to_string_pretty(&report)?);
-            }
+            print_json(&report, json)?;
         }
         Command::View {
             view,
@@ -327,11 +333,7 @@ fn run() -> anyhow::Result<()> {
                 rate_hz: stream.rate,
             };
             let report = rt.block_on(fly::fly(&opts))?;
-            if json {
-                println!("{}", serde_json::to_string(&report)?);
-            } else {
-                println!("{}", serde_json::to_string_pretty(&report)?);
-            }
+            print_json(&report, json)?;
         }
         Command::Load {
             stream,

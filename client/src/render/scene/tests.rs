@@ -109,12 +109,18 @@ fn check(scene: &Scene, geom: &TerrainGeometry, mirror: &Mirror, mesh: &FanMesh)
     }
 }
 
+/// A `w` x `h` terrain held at its root, with its mesh and scene.
+fn start(w: u32, h: u32, root_z: i32) -> (TerrainGeometry, Mirror, FanMesh, Scene) {
+    let geom = TerrainGeometry::new(w, h, 10.0, 12.0, 0.25).unwrap();
+    let mirror = Mirror::new(&geom, root_z);
+    let mut mesh = FanMesh::new(&geom.shape, mirror.cut());
+    let scene = Scene::build(&geom, &mirror, &mut mesh);
+    (geom, mirror, mesh, scene)
+}
+
 #[test]
 fn records_follow_random_splits_and_merges() {
-    let geom = TerrainGeometry::new(37, 29, 10.0, 12.0, 0.25).unwrap();
-    let mut mirror = Mirror::new(&geom, 400);
-    let mut mesh = FanMesh::new(&geom.shape, mirror.cut());
-    let mut scene = Scene::build(&geom, &mirror, &mut mesh);
+    let (geom, mut mirror, mut mesh, mut scene) = start(37, 29, 400);
     let mut shadow = Cut::root(&geom.shape);
     let mut rng = Rng(0x5eed_1234_abcd);
     let mut changes = Vec::new();
@@ -145,10 +151,7 @@ fn records_follow_random_splits_and_merges() {
 
 #[test]
 fn splits_are_stamped_and_pages_marked() {
-    let geom = TerrainGeometry::new(17, 17, 10.0, 10.0, 0.25).unwrap();
-    let mut mirror = Mirror::new(&geom, 0);
-    let mut mesh = FanMesh::new(&geom.shape, mirror.cut());
-    let mut scene = Scene::build(&geom, &mirror, &mut mesh);
+    let (geom, mut mirror, mut mesh, mut scene) = start(17, 17, 0);
     assert!(scene.nodes.grown());
     let _ = scene.nodes.take_dirty();
     let _ = scene.cells.take_dirty();
