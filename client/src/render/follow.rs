@@ -31,7 +31,7 @@ impl Follower {
         let changes = session.take_changes();
         if session.generation() != self.generation {
             *self = Follower::new(session);
-            return self.scene.nodes.live();
+            return self.scene.held_count();
         }
         let (geom, mirror, mesh) = session.parts_mut();
         self.scene.apply(geom, mirror, mesh, &changes, now);

@@ -25,8 +25,9 @@ const FRAME_BYTES: usize = 60 * 4;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum MorphStage {
     /// Once per node in a compute pass before the draw; the vertex shader reads the result.
-    /// Each node is shared by about six triangle corners, so this does a sixth of the work
-    /// (on lavapipe: 33 ms against 107 ms a frame on the embedded crop at 1280x720).
+    /// Each node is shared by about six triangle corners, so this does less work on big cuts
+    /// (lavapipe, 1280x720, fuji_srtm3's standard path: 214 against 343 ms a frame; on the
+    /// embedded crop 30 against 33 ms).
     #[default]
     Compute,
     /// In the vertex shader, per triangle corner.
@@ -82,6 +83,9 @@ pub struct Renderer {
     draw: wgpu::RenderPipeline,
     /// The terrain pass, reading the geomorph pass's output.
     draw_pre: wgpu::RenderPipeline,
+    /// Node slots the geomorph pass covers, and cell slots the draw covers: the pools' high
+    /// water marks, not their capacities.
+    used: (usize, usize),
     /// Depth buffer and its size.
     depth: Option<(wgpu::TextureView, (u32, u32))>,
 }
@@ -261,6 +265,7 @@ impl Renderer {
             morph,
             draw,
             draw_pre,
+            used: (scene.nodes.high_water(), scene.cells.high_water()),
             depth: None,
         }
     }
@@ -275,6 +280,7 @@ impl Renderer {
         if grew_nodes || grew_cells {
             self.groups = None;
         }
+        self.used = (scene.nodes.high_water(), scene.cells.high_water());
         a + b
     }
 
@@ -318,7 +324,7 @@ impl Renderer {
     }
 
     fn encode_morph(&mut self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder) {
-        let workgroups = self.nodes.records.div_ceil(64) as u32;
+        let workgroups = self.used.0.max(1).div_ceil(64) as u32;
         let (x, y) = (workgroups.min(65_535), workgroups.div_ceil(65_535));
         let morph = self.morph.clone();
         let groups = self.groups(gpu);
@@ -362,7 +368,7 @@ impl Renderer {
             }
             MorphStage::Vertex => self.draw.clone(),
         };
-        let vertices = (self.cells.records * CELL_WORDS) as u32;
+        let vertices = (self.used.1 * CELL_WORDS) as u32;
         let groups = self.groups(gpu).clone();
         let depth = &self.depth.as_ref().expect("made above").0;
         {

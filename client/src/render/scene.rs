@@ -36,16 +36,19 @@ const PAGE_RECORDS: usize = 64;
 /// children have grown out fully.
 const LONG_AGO: f32 = -1.0e30;
 
-/// A pool of fixed-size records with a free list and dirty pages.
+/// A pool of fixed-size records, handed out in blocks of a fixed number of consecutive
+/// records, with a free list of blocks and dirty pages.
 #[derive(Debug)]
 pub struct Pool {
     /// 32-bit words per record.
     stride: usize,
+    /// Records per block.
+    unit: u32,
     /// The records, `capacity * stride` words: a shadow of the GPU buffer.
     words: Vec<u32>,
     /// Records ever handed out (slots below this are used or free).
     used: u32,
-    /// Released slots, reused first.
+    /// First slots of released blocks, reused first.
     free: Vec<u32>,
     /// One flag per page: written since the last upload.
     dirty: Vec<bool>,
@@ -54,10 +57,11 @@ pub struct Pool {
 }
 
 impl Pool {
-    /// An empty pool of records of `stride` words.
-    pub fn new(stride: usize) -> Pool {
+    /// An empty pool of records of `stride` words, handed out `unit` at a time.
+    pub fn new(stride: usize, unit: u32) -> Pool {
         let mut p = Pool {
             stride,
+            unit,
             words: Vec::new(),
             used: 0,
             free: Vec::new(),
@@ -84,27 +88,29 @@ impl Pool {
         self.words.len() / self.stride
     }
 
-    /// Records in use.
-    pub fn live(&self) -> usize {
-        self.used as usize - self.free.len()
+    /// Records below the highest slot ever handed out: what a draw or a dispatch must cover.
+    pub fn high_water(&self) -> usize {
+        self.used as usize
     }
 
-    /// A free slot.
+    /// The first slot of a free block of `unit` consecutive records.
     pub fn alloc(&mut self) -> u32 {
         if let Some(s) = self.free.pop() {
             return s;
         }
         let s = self.used;
-        self.used += 1;
+        self.used += self.unit;
         self.reserve(self.used as usize);
         s
     }
 
-    /// Gives `slot` back; its record is cleared to [`NONE`].
+    /// Gives back the block starting at `slot`; its records are cleared to [`NONE`].
     pub fn release(&mut self, slot: u32) {
         let at = slot as usize * self.stride;
-        self.words[at..at + self.stride].fill(NONE);
-        self.dirty[slot as usize / PAGE_RECORDS] = true;
+        self.words[at..at + self.stride * self.unit as usize].fill(NONE);
+        for s in slot..slot + self.unit {
+            self.dirty[s as usize / PAGE_RECORDS] = true;
+        }
         self.free.push(slot);
     }
 
@@ -171,16 +177,24 @@ impl Scene {
     pub fn build(geom: &TerrainGeometry, mirror: &Mirror, mesh: &mut FanMesh) -> Scene {
         let mut s = Scene {
             node_slot: FxHashMap::default(),
-            nodes: Pool::new(NODE_WORDS),
+            nodes: Pool::new(NODE_WORDS, 4),
             cell_slot: FxHashMap::default(),
-            cells: Pool::new(CELL_WORDS),
+            cells: Pool::new(CELL_WORDS, 1),
         };
         let mut held: Vec<u64> = mirror.held().map(|(i, _)| i).collect();
-        // Parents before children, so that a record's parent slot exists when it is written.
+        // Parents before children (dense indices go level by level): a node's slot is given
+        // when its parent is visited, its children's block when it is.
         held.sort_unstable();
-        for &i in &held {
+        let shape = &geom.shape;
+        let root = shape.index(NodeId::ROOT);
+        if held.first() == Some(&root) {
             let slot = s.nodes.alloc();
-            s.node_slot.insert(i, slot);
+            s.node_slot.insert(root, slot);
+        }
+        for &i in &held {
+            if let Some(n) = shape.node(i) {
+                s.place_children(geom, mirror, n);
+            }
         }
         for &i in &held {
             if let Some(n) = geom.shape.node(i) {
@@ -210,22 +224,22 @@ impl Scene {
         for &c in changes {
             match c {
                 Change::Merge(m) => {
-                    for (_, child) in shape.children(m) {
+                    let mut block = None;
+                    for (k, child) in shape.children(m) {
                         if let Some(slot) = self.node_slot.remove(&shape.index(child)) {
-                            self.nodes.release(slot);
+                            block = Some(slot - k as u32);
                         }
                         touched.remove(&child);
                         split_now.remove(&child);
                     }
+                    if let Some(b) = block {
+                        self.nodes.release(b);
+                    }
                     touched.insert(m);
                 }
                 Change::Split(n) => {
+                    self.place_children(geom, mirror, n);
                     for (_, child) in shape.children(n) {
-                        let i = shape.index(child);
-                        if !self.node_slot.contains_key(&i) {
-                            let slot = self.nodes.alloc();
-                            self.node_slot.insert(i, slot);
-                        }
                         touched.insert(child);
                     }
                     touched.insert(n);
@@ -251,6 +265,29 @@ impl Scene {
         for cell in mesh.take_dirty() {
             self.write_cell(geom, mesh, cell);
         }
+    }
+
+    /// Gives `n`'s held children one block of four consecutive slots (child `k` at `k`), so
+    /// that a split or merge writes one place of the node pool, unless they have slots.
+    fn place_children(&mut self, geom: &TerrainGeometry, mirror: &Mirror, n: NodeId) {
+        let shape = &geom.shape;
+        let held: Vec<(usize, u64)> = shape
+            .children(n)
+            .filter(|&(_, c)| mirror.node(geom, c).is_some())
+            .map(|(k, c)| (k, shape.index(c)))
+            .collect();
+        if held.is_empty() || held.iter().any(|(_, i)| self.node_slot.contains_key(i)) {
+            return;
+        }
+        let base = self.nodes.alloc();
+        for (k, i) in held {
+            self.node_slot.insert(i, base + k as u32);
+        }
+    }
+
+    /// Nodes with a slot (every node the mirror holds).
+    pub fn held_count(&self) -> usize {
+        self.node_slot.len()
     }
 
     fn write_node(&mut self, geom: &TerrainGeometry, mirror: &Mirror, n: NodeId, t_split: f32) {

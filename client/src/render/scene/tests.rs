@@ -98,7 +98,9 @@ fn drawn(scene: &Scene, geom: &TerrainGeometry) -> BTreeSet<Tri> {
 fn check(scene: &Scene, geom: &TerrainGeometry, mirror: &Mirror, mesh: &FanMesh) {
     let want: BTreeSet<Tri> = mesh.triangles().into_iter().collect();
     assert_eq!(drawn(scene, geom), want);
-    assert_eq!(scene.nodes.live(), mirror.held().count());
+    assert_eq!(scene.held_count(), mirror.held().count());
+    let slots: std::collections::HashSet<u32> = scene.node_slot.values().copied().collect();
+    assert_eq!(slots.len(), scene.held_count(), "two nodes share a slot");
     for (i, d) in mirror.held() {
         let n = geom.shape.node(i).unwrap();
         let slot = scene.slot_of(geom, n).expect("every held node has a slot");
