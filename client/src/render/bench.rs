@@ -8,9 +8,10 @@
 //! that cut. Figures are medians and 99th percentiles over the path's poses.
 
 use super::follow::Follower;
+use super::frame::{FrameParams, MorphStage};
 use super::gpu::{Gpu, RenderError};
 use super::offscreen::{FORMAT, Offscreen};
-use super::renderer::{FrameParams, MorphStage, Renderer};
+use super::renderer::Renderer;
 use super::shot::ShotError;
 use crate::flight::{PathSpec, extent, quantile, server_path};
 use crate::session::{Session, SessionConfig};

@@ -5,14 +5,15 @@
 //!   or merge at a time; dirty pages for upload. Pure CPU.
 //! - [`follow`]: a scene that follows a [`crate::Session`].
 //! - [`gpu`]: instance, adapter, device and queue, headless or for a window.
-//! - [`renderer`]: GPU buffers, the geomorph compute pass and the terrain render pass
-//!   (`terrain.wgsl`).
-//! - [`offscreen`]: a target without a window, read back into an image.
+//! - [`frame`]: what a frame is drawn with, and its uniform block.
+//! - [`renderer`]: GPU buffers, the geomorph and terrain passes (`terrain.wgsl`).
+//! - [`offscreen`]: a target without a window, and reading GPU memory back.
 //! - [`shot`]: `relief-client shot`: one frame to a PNG.
 //! - [`bench`]: `relief-client render-bench`: the client's cost per delta and frame rate.
 
 pub mod bench;
 pub mod follow;
+pub mod frame;
 pub mod gpu;
 pub mod offscreen;
 pub mod renderer;
@@ -20,9 +21,10 @@ pub mod scene;
 pub mod shot;
 
 pub use follow::Follower;
+pub use frame::{FrameParams, MorphStage};
 pub use gpu::{Gpu, RenderError};
 pub use offscreen::Offscreen;
-pub use renderer::{FrameParams, MorphStage, Renderer};
+pub use renderer::Renderer;
 pub use scene::Scene;
 
 use relief_proto::terrain::TerrainGeometry;

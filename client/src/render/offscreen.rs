@@ -1,7 +1,6 @@
 //! A render target without a window, read back into an image (for `shot`, tests and timing).
 
 use super::gpu::{Gpu, RenderError};
-use super::renderer::map_read;
 
 /// The offscreen colour format: plain 8-bit RGBA, so that the stored bytes are exactly what
 /// the shader wrote (it encodes sRGB itself) and the clear colour's bytes come back unchanged.
@@ -85,4 +84,41 @@ impl Offscreen {
         image::RgbaImage::from_raw(w, h, pixels)
             .ok_or_else(|| RenderError::Readback("frame size mismatch".into()))
     }
+}
+
+/// Copies `size` bytes of `src` into a mapped buffer and returns them (waits for the GPU).
+pub(crate) fn read_buffer(
+    gpu: &Gpu,
+    src: &wgpu::Buffer,
+    size: u64,
+) -> Result<Vec<u8>, RenderError> {
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("relief readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+    gpu.queue.submit([enc.finish()]);
+    map_read(gpu, &staging)
+}
+
+/// Maps `buffer` for reading and returns its bytes (waits for the GPU).
+pub(crate) fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    gpu.wait();
+    rx.recv()
+        .map_err(|e| RenderError::Readback(e.to_string()))?
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    let out = slice
+        .get_mapped_range()
+        .map_err(|e| RenderError::Readback(e.to_string()))?
+        .to_vec();
+    buffer.unmap();
+    Ok(out)
 }

@@ -8,56 +8,15 @@
 //! compute pass runs the same geomorph function for every node slot and writes the positions
 //! out, for tests that read back what is drawn ([`Renderer::morph_only`]).
 
+use super::frame::{FRAME_BYTES, FrameParams, MorphStage, frame_block};
 use super::gpu::{Gpu, RenderError};
+use super::offscreen::read_buffer;
 use super::scene::{CELL_WORDS, Pool, Scene};
-use glam::{Mat4, Vec3, Vec4};
-use relief_proto::mesh::MorphRule;
-use relief_proto::view::{Camera, Lens, ViewState};
+use glam::Vec3;
 use wgpu::util::DeviceExt;
 
 /// Depth buffer format (reversed Z: near is 1, infinity 0).
 const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-/// Bytes of the uniform block (see `Frame` in `terrain.wgsl`).
-const FRAME_BYTES: usize = 60 * 4;
-
-/// Where the geomorph is evaluated. Both run the same WGSL function and draw the same image
-/// (the golden-image test checks both).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum MorphStage {
-    /// Once per node in a compute pass before the draw; the vertex shader reads the result.
-    /// Each node is shared by about six triangle corners, so this does less work on big cuts
-    /// (lavapipe, 1280x720, fuji_srtm3's standard path: 214 against 343 ms a frame; on the
-    /// embedded crop 30 against 33 ms).
-    #[default]
-    Compute,
-    /// In the vertex shader, per triangle corner.
-    Vertex,
-}
-
-/// What one frame is drawn with.
-#[derive(Clone, Copy, Debug)]
-pub struct FrameParams {
-    /// The camera.
-    pub camera: Camera,
-    /// The lens; its width and height are the target's.
-    pub lens: Lens,
-    /// The geomorph.
-    pub rule: MorphRule,
-    /// Now, seconds on the clock the scene's split times use.
-    pub now: f32,
-    /// Draw triangle edges over the shading.
-    pub wireframe: bool,
-    /// Heights spanned by the colour ramp, metres.
-    pub z_range: (f32, f32),
-    /// Encode sRGB in the shader (for targets that do not encode it themselves).
-    pub encode_srgb: bool,
-    /// Clear colour, 0..1 as stored in the target.
-    pub background: [f64; 3],
-    /// Distance at which the haze reaches about two thirds of its strength, metres.
-    pub fog_distance: f32,
-    /// Where the geomorph is evaluated.
-    pub morph: MorphStage,
-}
 
 /// GPU buffers, pipelines and bind groups for one scene.
 pub struct Renderer {
@@ -426,96 +385,4 @@ fn drawn_buffer(gpu: &Gpu, records: usize) -> wgpu::Buffer {
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     })
-}
-
-/// Copies `size` bytes of `src` into a mapped buffer and returns them (waits for the GPU).
-pub(crate) fn read_buffer(
-    gpu: &Gpu,
-    src: &wgpu::Buffer,
-    size: u64,
-) -> Result<Vec<u8>, RenderError> {
-    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("relief readback"),
-        size,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
-    enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
-    gpu.queue.submit([enc.finish()]);
-    map_read(gpu, &staging)
-}
-
-/// Maps `buffer` for reading and returns its bytes (waits for the GPU).
-pub(crate) fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
-    let slice = buffer.slice(..);
-    let (tx, rx) = std::sync::mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    gpu.wait();
-    rx.recv()
-        .map_err(|e| RenderError::Readback(e.to_string()))?
-        .map_err(|e| RenderError::Readback(e.to_string()))?;
-    let out = slice
-        .get_mapped_range()
-        .map_err(|e| RenderError::Readback(e.to_string()))?
-        .to_vec();
-    buffer.unmap();
-    Ok(out)
-}
-
-/// Right-handed perspective with an infinite far plane and reversed depth (1 at the near plane,
-/// 0 at infinity), for wgpu's 0..1 clip depth: the best depth precision far away.
-fn projection(fov_y: f32, aspect: f32, near: f32) -> Mat4 {
-    let f = 1.0 / (fov_y / 2.0).tan();
-    Mat4::from_cols(
-        Vec4::new(f / aspect, 0.0, 0.0, 0.0),
-        Vec4::new(0.0, f, 0.0, 0.0),
-        Vec4::new(0.0, 0.0, 0.0, -1.0),
-        Vec4::new(0.0, 0.0, near, 0.0),
-    )
-}
-
-/// View rotation from the eye looking along `dir` with z up (the eye is the origin: positions
-/// reach the shader relative to it).
-fn look_to(dir: Vec3) -> Mat4 {
-    let f = dir.normalize();
-    let s = f.cross(Vec3::Z).normalize_or(Vec3::X);
-    let u = s.cross(f);
-    Mat4::from_cols(
-        Vec4::new(s.x, u.x, -f.x, 0.0),
-        Vec4::new(s.y, u.y, -f.y, 0.0),
-        Vec4::new(s.z, u.z, -f.z, 0.0),
-        Vec4::W,
-    )
-}
-
-/// The uniform block of `Frame` in `terrain.wgsl`.
-fn frame_block(f: &FrameParams) -> [f32; FRAME_BYTES / 4] {
-    let view = ViewState::new(&f.camera, &f.lens);
-    let forward = f.camera.forward();
-    let aspect = f.lens.width.max(1) as f32 / f.lens.height.max(1) as f32;
-    let proj = projection(f.lens.fov_y_deg.to_radians(), aspect, f.lens.near);
-    let look = look_to(forward);
-    let mut b = [0.0f32; FRAME_BYTES / 4];
-    b[0..16].copy_from_slice(&(proj * look).to_cols_array());
-    b[16..20].copy_from_slice(&[f.camera.eye.x, f.camera.eye.y, f.camera.eye.z, f.now]);
-    b[20..24].copy_from_slice(&[forward.x, forward.y, forward.z, view.focal()]);
-    for (i, n) in view.planes().iter().enumerate() {
-        let offset = if i == 4 { view.near() } else { 0.0 };
-        b[24 + 4 * i..28 + 4 * i].copy_from_slice(&[n.x, n.y, n.z, offset]);
-    }
-    b[44..48].copy_from_slice(&[f.rule.tau, f.rule.lambda, f.rule.duration, view.off_axis()]);
-    b[48..52].copy_from_slice(&[
-        view.near(),
-        f.z_range.0,
-        f.z_range.1,
-        if f.wireframe { 1.0 } else { 0.0 },
-    ]);
-    let sun = Vec3::new(-0.55, 0.45, 0.70).normalize();
-    let srgb = if f.encode_srgb { 1.0 } else { 0.0 };
-    b[52..56].copy_from_slice(&[sun.x, sun.y, sun.z, srgb]);
-    b[56..60].copy_from_slice(&[0.62, 0.70, 0.80, f.fog_distance.max(1.0)]);
-    b
 }

@@ -8,10 +8,11 @@
 //! settled.
 
 use super::follow::Follower;
+use super::frame::{FrameParams, MorphStage};
 use super::gpu::{Gpu, RenderError};
 use super::height_range;
 use super::offscreen::Offscreen;
-use super::renderer::{FrameParams, MorphStage, Renderer};
+use super::renderer::Renderer;
 use crate::flight::{PathSpec, extent, server_path};
 use crate::http::HttpError;
 use crate::session::{ClientError, Session, SessionConfig};
