@@ -85,11 +85,7 @@ pub struct RenderBenchReport {
 pub async fn render_bench(opts: &RenderBenchOptions) -> Result<RenderBenchReport, ShotError> {
     let gpu = Gpu::headless()?;
     let lens = opts.session.lens;
-    let config = SessionConfig {
-        mesh: true,
-        record_changes: true,
-        ..opts.session.clone()
-    };
+    let config = super::renderer_config(opts.session.clone());
     let mut session = Session::connect(config).await?;
     let cams = server_path(
         session.url(),

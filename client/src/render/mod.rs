@@ -27,7 +27,20 @@ pub use offscreen::Offscreen;
 pub use renderer::Renderer;
 pub use scene::Scene;
 
+use crate::session::SessionConfig;
 use relief_proto::terrain::TerrainGeometry;
+use std::time::Duration;
+
+/// `config` as a renderer needs it: fans kept and changes recorded, and at most 5 s of
+/// reconnecting before an error, so that a dead server is reported within seconds.
+pub fn renderer_config(config: SessionConfig) -> SessionConfig {
+    SessionConfig {
+        mesh: true,
+        record_changes: true,
+        reconnect_deadline: config.reconnect_deadline.min(Duration::from_secs(5)),
+        ..config
+    }
+}
 
 /// The fog distance that suits a terrain: its larger side.
 pub fn fog_distance(geom: &TerrainGeometry) -> f32 {

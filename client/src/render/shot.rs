@@ -100,11 +100,7 @@ pub struct Streamed {
 
 /// Connects and streams the cut for `pose`.
 pub async fn stream_to(config: SessionConfig, pose: ShotPose) -> Result<Streamed, ShotError> {
-    let config = SessionConfig {
-        mesh: true,
-        record_changes: true,
-        ..config
-    };
+    let config = super::renderer_config(config);
     let mut session = Session::connect(config).await?;
     let mut follower = Follower::new(&mut session);
     let (cams, last) = match pose {

@@ -126,18 +126,15 @@ pub fn run(shared: Arc<Shared>, config: SessionConfig, rate_hz: f64) {
                 .lock()
                 .map(|w| (w.tau, w.size))
                 .unwrap_or((config.tau, (config.lens.width, config.lens.height)));
-            let cfg = SessionConfig {
+            let cfg = crate::render::renderer_config(SessionConfig {
                 tau,
                 lens: Lens {
                     width: size.0,
                     height: size.1,
                     ..config.lens
                 },
-                mesh: true,
-                record_changes: true,
-                reconnect_deadline: Duration::from_secs(5),
                 ..config.clone()
-            };
+            });
             let why = match Session::connect(cfg).await {
                 Ok(session) => {
                     wait = Duration::from_millis(500);
