@@ -95,7 +95,7 @@ struct ViewArgs {
     #[arg(long)]
     wireframe: bool,
     /// Where the geomorph runs: `compute` (once per node in a compute pass before the draw) or
-    /// `vertex` (in the vertex shader, per triangle corner). Same image; `compute` is cheaper.
+    /// `vertex` (in the vertex shader, per triangle corner). Same image; `compute` is cheaper on big cuts.
     #[arg(long, value_enum, default_value = "compute")]
     morph: MorphStage,
 }

@@ -7,7 +7,7 @@
 //! again: the caller sees one continuous stream. A digest mismatch is counted as a desync and
 //! repaired by starting again from the root.
 //!
-//! Its configuration, errors, counters and change records are in `session/types.rs`.
+//! Its configuration, errors, counters and link state are in `session/types.rs`.
 
 use futures_util::{SinkExt, StreamExt};
 use relief_proto::close::CloseReason;
@@ -27,7 +27,8 @@ use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
 mod types;
-pub use types::{Applied, Change, ClientError, Counters, Link, SessionConfig};
+pub use relief_proto::mirror::Change;
+pub use types::{Applied, ClientError, Counters, Link, SessionConfig};
 
 type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
@@ -140,7 +141,8 @@ fn closed(code: u16, text: String) -> Result<String, ClientError> {
 impl Session {
     /// Connects and opens a session from the root (retrying within the reconnect deadline).
     pub async fn connect(config: SessionConfig) -> Result<Session, ClientError> {
-        let (ws, welcome, bytes) = Self::establish(&config, None, &Link::default()).await?;
+        let link = std::sync::Arc::new(Link::default());
+        let (ws, welcome, bytes) = Self::establish(&config, None, &link).await?;
         let info = welcome.terrain.clone();
         let geom = info
             .geometry()
@@ -164,7 +166,7 @@ impl Session {
             },
             changes: Vec::new(),
             generation: 0,
-            link: std::sync::Arc::new(Link::default()),
+            link,
         })
     }
 
@@ -326,19 +328,12 @@ impl Session {
             let build = self.config.mesh;
             let record = self.config.record_changes;
             let changes = &mut self.changes;
-            let mut merges_left = delta.merges.len();
-            let applied = self.mirror.apply(&self.geom, &delta, |c, n| {
+            let applied = self.mirror.apply(&self.geom, &delta, |c, change| {
                 if build {
-                    mesh.update_around(shape, c, n);
+                    mesh.update_around(shape, c, change.node());
                 }
                 if record {
-                    // The mirror applies every merge before any split.
-                    changes.push(if merges_left > 0 {
-                        merges_left -= 1;
-                        Change::Merge(n)
-                    } else {
-                        Change::Split(n)
-                    });
+                    changes.push(change);
                 }
             });
             if applied.is_err() {

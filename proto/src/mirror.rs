@@ -20,6 +20,24 @@ pub struct NodeData {
     pub err_code: u8,
 }
 
+/// One split or merge the mirror applied, reported in the order it was applied.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Change {
+    /// The node split: its children are now held.
+    Split(NodeId),
+    /// The node merged: its children are gone.
+    Merge(NodeId),
+}
+
+impl Change {
+    /// The node that split or merged.
+    pub fn node(self) -> NodeId {
+        match self {
+            Change::Split(n) | Change::Merge(n) => n,
+        }
+    }
+}
+
 /// A delta the mirror could not apply.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
 pub enum MirrorError {
@@ -82,13 +100,13 @@ impl Mirror {
     /// Applies `delta` and checks its digest: first the merges deepest first (in reverse of their
     /// canonical order, so that when a node and its child both merge the child goes first and
     /// every merging node's children are active), then the splits in order (parents first).
-    /// `on_change` is called after each merge or split with the node, for incremental mesh
-    /// updates. On error the mirror may hold part of the delta: the caller must resynchronise.
+    /// `on_change` is called after each merge or split with the change, for incremental mesh
+    /// and GPU-buffer updates. On error the mirror may hold part of the delta: the caller must resynchronise.
     pub fn apply(
         &mut self,
         geom: &TerrainGeometry,
         delta: &Delta,
-        mut on_change: impl FnMut(&Cut, NodeId),
+        mut on_change: impl FnMut(&Cut, Change),
     ) -> Result<(), MirrorError> {
         let shape = &geom.shape;
         for &m in delta.merges.iter().rev() {
@@ -96,7 +114,7 @@ impl Mirror {
             for (_, c) in shape.children(m) {
                 self.nodes.remove(&shape.index(c));
             }
-            on_change(&self.cut, m);
+            on_change(&self.cut, Change::Merge(m));
         }
         for s in &delta.splits {
             self.cut.split(shape, s.node)?;
@@ -114,7 +132,7 @@ impl Mirror {
                 };
                 self.nodes.insert(shape.index(c), data);
             }
-            on_change(&self.cut, s.node);
+            on_change(&self.cut, Change::Split(s.node));
         }
         if self.cut.digest() != delta.digest {
             return Err(MirrorError::Desync {

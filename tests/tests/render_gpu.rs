@@ -3,11 +3,10 @@
 //! of the geomorph at every split and merge (issue 4).
 
 use glam::Vec3;
+use relief_client::render::frame::rgb8;
 use relief_client::render::offscreen::{FORMAT, Offscreen};
 use relief_client::render::shot::{ShotPose, draw, frame_params, stream_to};
-use relief_client::render::{
-    Follower, FrameParams, Gpu, MorphStage, Renderer, fog_distance, height_range,
-};
+use relief_client::render::{Follower, FrameParams, Gpu, MorphStage, Renderer};
 use relief_client::session::{Session, SessionConfig};
 use relief_proto::mesh::MorphRule;
 use relief_proto::path::PATH_HZ;
@@ -198,16 +197,10 @@ impl Rig {
 
     fn params(&self, camera: Camera, now: f32, rule: MorphRule, bg: [u8; 3]) -> FrameParams {
         FrameParams {
-            camera,
-            lens: self.lens,
             rule,
-            now,
-            wireframe: false,
-            z_range: height_range(self.session.terrain()),
-            encode_srgb: true,
-            background: bg.map(|c| f64::from(c) / 255.0),
-            fog_distance: fog_distance(self.session.geometry()),
+            background: rgb8(bg),
             morph: MorphStage::Compute,
+            ..FrameParams::offscreen(&self.session, camera, self.lens, now)
         }
     }
 

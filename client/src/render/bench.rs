@@ -9,13 +9,12 @@
 
 use super::follow::Follower;
 use super::frame::{FrameParams, MorphStage};
-use super::gpu::{Gpu, RenderError};
+use super::gpu::Gpu;
 use super::offscreen::{FORMAT, Offscreen};
 use super::renderer::Renderer;
 use super::shot::ShotError;
 use crate::flight::{PathSpec, extent, quantile, server_path};
 use crate::session::{Session, SessionConfig};
-use relief_proto::mesh::MorphRule;
 use relief_proto::path::{PATH_HZ, PathKind};
 use serde::Serialize;
 use std::time::Instant;
@@ -120,7 +119,10 @@ pub async fn render_bench(opts: &RenderBenchOptions) -> Result<RenderBenchReport
         upload.push(u);
         total.push(a + s + u);
         bytes.push(b as f64);
-        let params = frame_params(&session, opts.morph, *cam, lens, now + 1.0 / PATH_HZ);
+        let params = FrameParams {
+            morph: opts.morph,
+            ..FrameParams::offscreen(&session, *cam, lens, now + 1.0 / PATH_HZ)
+        };
         let t = Instant::now();
         renderer.render(&gpu, &target.view, &params);
         gpu.wait();
@@ -150,30 +152,4 @@ pub async fn render_bench(opts: &RenderBenchOptions) -> Result<RenderBenchReport
     };
     session.close().await;
     Ok(report)
-}
-
-fn frame_params(
-    session: &Session,
-    morph: MorphStage,
-    camera: relief_proto::view::Camera,
-    lens: relief_proto::view::Lens,
-    now: f32,
-) -> FrameParams {
-    FrameParams {
-        camera,
-        lens,
-        rule: MorphRule::new(session.tau()),
-        now,
-        wireframe: false,
-        z_range: super::height_range(session.terrain()),
-        encode_srgb: true,
-        background: [0.62, 0.70, 0.80],
-        fog_distance: super::fog_distance(session.geometry()),
-        morph,
-    }
-}
-
-/// Checks that a renderer can start here, for commands that want to fail early.
-pub fn probe() -> Result<String, RenderError> {
-    Gpu::headless().map(|g| g.describe())
 }

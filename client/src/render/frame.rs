@@ -2,6 +2,7 @@
 //! `terrain.wgsl`): camera-relative view-projection, the view's planes and focal length for
 //! the screen error, the geomorph's parameters, shading.
 
+use crate::session::Session;
 use glam::{Mat4, Vec3, Vec4};
 use relief_proto::mesh::MorphRule;
 use relief_proto::view::{Camera, Lens, ViewState};
@@ -46,6 +47,34 @@ pub struct FrameParams {
     pub fog_distance: f32,
     /// Where the geomorph is evaluated.
     pub morph: MorphStage,
+}
+
+impl FrameParams {
+    /// An offscreen frame of `session`'s terrain from `camera` through `lens` at `now`: the
+    /// session's tau with the default geomorph (in a compute pass), no wireframe, sRGB encoded
+    /// in the shader, the default sky, haze scaled to the terrain.
+    pub fn offscreen(session: &Session, camera: Camera, lens: Lens, now: f32) -> FrameParams {
+        FrameParams {
+            camera,
+            lens,
+            rule: MorphRule::new(session.tau()),
+            now,
+            wireframe: false,
+            z_range: super::height_range(session.terrain()),
+            encode_srgb: true,
+            background: rgb8(SKY_RGB8),
+            fog_distance: super::fog_distance(session.geometry()),
+            morph: MorphStage::default(),
+        }
+    }
+}
+
+/// The default sky, 8-bit sRGB (`--background`'s default, `#9eb3cc`).
+pub const SKY_RGB8: [u8; 3] = [158, 179, 204];
+
+/// An 8-bit colour as a clear colour (0..1 as stored in the target).
+pub fn rgb8(c: [u8; 3]) -> [f64; 3] {
+    c.map(|v| f64::from(v) / 255.0)
 }
 
 /// Right-handed perspective with an infinite far plane and reversed depth (1 at the near plane,

@@ -229,7 +229,9 @@ impl Renderer {
         }
     }
 
-    /// Uploads the records `scene` changed since the last call; returns the bytes sent.
+    /// Uploads the records `scene` changed since the last call; returns the bytes sent. A pool
+    /// that grew, or a scene made anew (its pools start out marked grown), is sent whole, so one
+    /// renderer serves a new session's scene too.
     pub fn upload(&mut self, gpu: &Gpu, scene: &mut Scene) -> usize {
         let (a, grew_nodes) = self.nodes.sync(gpu, &mut scene.nodes, "relief nodes");
         let (b, grew_cells) = self.cells.sync(gpu, &mut scene.cells, "relief cells");

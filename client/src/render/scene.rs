@@ -247,8 +247,7 @@ impl Scene {
                 }
             }
         }
-        let mut touched: Vec<NodeId> = touched.into_iter().collect();
-        touched.sort_unstable_by_key(|&n| shape.index(n));
+        // Every slot is placed by now, so records can be written in any order.
         for n in touched {
             let Some(&slot) = self.node_slot.get(&shape.index(n)) else {
                 continue;

@@ -8,15 +8,13 @@
 //! settled.
 
 use super::follow::Follower;
-use super::frame::{FrameParams, MorphStage};
+use super::frame::{FrameParams, MorphStage, rgb8};
 use super::gpu::{Gpu, RenderError};
-use super::height_range;
 use super::offscreen::Offscreen;
 use super::renderer::Renderer;
 use crate::flight::{PathSpec, extent, server_path};
 use crate::http::HttpError;
 use crate::session::{ClientError, Session, SessionConfig};
-use relief_proto::mesh::MorphRule;
 use relief_proto::path::{PATH_HZ, PathKind};
 use relief_proto::view::{Camera, Lens};
 
@@ -138,16 +136,9 @@ pub async fn stream_to(config: SessionConfig, pose: ShotPose) -> Result<Streamed
 /// The frame parameters a shot of `s` uses.
 pub fn frame_params(s: &Streamed, lens: Lens, wireframe: bool, background: [u8; 3]) -> FrameParams {
     FrameParams {
-        camera: s.camera,
-        lens,
-        rule: MorphRule::new(s.session.tau()),
-        now: s.now,
         wireframe,
-        z_range: height_range(s.session.terrain()),
-        encode_srgb: true,
-        background: background.map(|c| f64::from(c) / 255.0),
-        fog_distance: super::fog_distance(s.session.geometry()),
-        morph: MorphStage::default(),
+        background: rgb8(background),
+        ..FrameParams::offscreen(&s.session, s.camera, lens, s.now)
     }
 }
 

@@ -1,7 +1,6 @@
 //! What a session is configured with and reports: its configuration, errors, per-delta and
-//! lifetime counters, the changes it records for renderers, and its shared link state.
+//! lifetime counters, and its shared link state.
 
-use relief_proto::tree::NodeId;
 use relief_proto::view::Lens;
 use std::time::Duration;
 
@@ -103,15 +102,6 @@ pub struct Counters {
     pub reconnects: u64,
     /// Reconnections the server resumed from the snapshot.
     pub resumes: u64,
-}
-
-/// One split or merge the mirror applied, in the order it was applied.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Change {
-    /// The node split: its children are now held.
-    Split(NodeId),
-    /// The node merged: its children are gone.
-    Merge(NodeId),
 }
 
 /// Whether a session is connected, readable from other threads while the session itself is

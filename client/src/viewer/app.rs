@@ -34,8 +34,8 @@ struct Surface {
     config: wgpu::SurfaceConfiguration,
     /// The device.
     gpu: Gpu,
-    /// The renderer of the current scene, and the scene epoch it was made for.
-    renderer: Option<(Renderer, u64)>,
+    /// The renderer, made once the first scene exists.
+    renderer: Option<Renderer>,
 }
 
 /// The application state.
@@ -206,7 +206,6 @@ impl App {
                 self.resized = None;
             }
         }
-        let epoch = st.epoch;
         let (tau, range, geom_fog) = (
             st.tau,
             st.height_range,
@@ -219,13 +218,10 @@ impl App {
         };
         if let Some(f) = st.follower.as_mut() {
             match s.renderer.as_mut() {
-                Some((r, e)) if *e == epoch => {
+                Some(r) => {
                     r.upload(&s.gpu, &mut f.scene);
                 }
-                _ => {
-                    let r = Renderer::new(&s.gpu, s.config.format, &mut f.scene);
-                    s.renderer = Some((r, epoch));
-                }
+                None => s.renderer = Some(Renderer::new(&s.gpu, s.config.format, &mut f.scene)),
             }
         }
         let title = format!(
@@ -255,7 +251,7 @@ impl App {
         };
         let view = frame.texture.create_view(&Default::default());
         match (s.renderer.as_mut(), camera) {
-            (Some((r, _)), Some(camera)) => {
+            (Some(r), Some(camera)) => {
                 let params = FrameParams {
                     camera,
                     lens,

@@ -39,10 +39,9 @@ pub struct Wanted {
 /// The network side's state, read by the window each frame.
 #[derive(Default)]
 pub struct NetState {
-    /// The scene of the current session (`None` before the first welcome).
+    /// The scene of the current session (`None` before the first welcome). A new session or a
+    /// rebuild after a desync makes a new scene, whose pools the renderer then sends whole.
     pub follower: Option<Follower>,
-    /// Bumped when `follower` is replaced: the renderer must make its buffers anew.
-    pub epoch: u64,
     /// The terrain's geometry.
     pub geom: Option<TerrainGeometry>,
     /// The terrain's extent, metres, and highest height.
@@ -173,7 +172,6 @@ async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), 
     let size = (session.lens().width, session.lens().height);
     if let Ok(mut st) = shared.state.lock() {
         st.follower = Some(follower);
-        st.epoch += 1;
         st.geom = Some(geom.clone());
         st.extent = Some((extent, info.height_range[1]));
         st.height_range = (info.height_range[0], info.height_range[1]);
@@ -209,13 +207,18 @@ async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), 
             }
         }
         let until = next_pose.saturating_duration_since(Instant::now());
-        let Ok(applied) = tokio::time::timeout(until, session.next_delta()).await else {
+        let applied = tokio::time::timeout(until, session.next_delta()).await;
+        let t = Instant::now();
+        window.retain(|(at, _)| t.duration_since(*at) <= Duration::from_secs(1));
+        let Ok(applied) = applied else {
+            // Nothing arrived before the next pose is due: the rate still falls as time passes.
+            if let Ok(mut st) = shared.state.lock() {
+                st.bytes_per_s = bytes_in(&window);
+            }
             continue;
         };
         let a = applied.map_err(|e| e.to_string())?;
-        let t = Instant::now();
         window.push((t, a.bytes));
-        window.retain(|(at, _)| t.duration_since(*at) <= Duration::from_secs(1));
         let latency = if a.complete {
             let l = sent_at
                 .remove(&a.pose_seq)
@@ -229,14 +232,10 @@ async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), 
         let stamp = shared.now();
         if let Ok(mut st) = shared.state.lock() {
             if let Some(f) = st.follower.as_mut() {
-                let before = session.generation();
                 f.sync(&mut session, stamp);
-                if session.generation() != before {
-                    st.epoch += 1;
-                }
             }
             st.triangles = session.mesh().triangle_count();
-            st.bytes_per_s = window.iter().map(|w| w.1 as f64).sum();
+            st.bytes_per_s = bytes_in(&window);
             if latency.is_some() {
                 st.latency_ms = latency;
             }
@@ -245,6 +244,11 @@ async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), 
             }
         }
     }
+}
+
+/// Bytes received within the window (an empty window is 0, not the -0.0 of an empty float sum).
+fn bytes_in(window: &[(Instant, usize)]) -> f64 {
+    window.iter().map(|w| w.1 as u64).sum::<u64>() as f64
 }
 
 /// Height of the cut's active node over world `x`, `y`, metres (`None` off the terrain).

@@ -223,7 +223,9 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
 
         let t0 = Instant::now();
         let decoded = unwire(&bytes, geom)?;
-        match mirror.apply(geom, &decoded, |c, n| mesh.update_around(shape, c, n)) {
+        match mirror.apply(geom, &decoded, |c, ch| {
+            mesh.update_around(shape, c, ch.node())
+        }) {
             Ok(()) => {}
             Err(e) => {
                 r.desyncs += 1;

@@ -128,17 +128,11 @@ fn records_follow_random_splits_and_merges() {
     let mut changes = Vec::new();
     for seq in 1..=400u64 {
         let delta = random_delta(&geom, &mut shadow, &mut rng, seq);
-        let mut merges_left = delta.merges.len();
         changes.clear();
         mirror
-            .apply(&geom, &delta, |c, n| {
-                mesh.update_around(&geom.shape, c, n);
-                changes.push(if merges_left > 0 {
-                    merges_left -= 1;
-                    Change::Merge(n)
-                } else {
-                    Change::Split(n)
-                });
+            .apply(&geom, &delta, |c, change| {
+                mesh.update_around(&geom.shape, c, change.node());
+                changes.push(change);
             })
             .unwrap();
         scene.apply(&geom, &mirror, &mut mesh, &changes, seq as f32);
@@ -175,7 +169,9 @@ fn splits_are_stamped_and_pages_marked() {
         }],
     };
     mirror
-        .apply(&geom, &delta, |c, n| mesh.update_around(&geom.shape, c, n))
+        .apply(&geom, &delta, |c, ch| {
+            mesh.update_around(&geom.shape, c, ch.node())
+        })
         .unwrap();
     scene.apply(&geom, &mirror, &mut mesh, &[Change::Split(root)], 42.5);
     let r = scene.nodes.record(scene.slot_of(&geom, root).unwrap());
