@@ -15,6 +15,8 @@
 //!   [`close`]: the reasons a session ends; [`snapshot`]: a cut in one bit per inner node.
 //! - [`errors`]: one-line error reports for the command lines.
 //! - [`path`]: the standard and stress camera paths.
+//! - [`tile`]: the tile stream (paper 001): the tile pyramid's shape, tile bodies with crack
+//!   patches, tile deltas, the tile cache both ends keep, and snapshots of an active tile set.
 //! - [`mesh`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
 //!   output-sensitive incremental builder the client uses.
 pub mod bits;
@@ -30,5 +32,6 @@ pub mod msg;
 pub mod path;
 pub mod snapshot;
 pub mod terrain;
+pub mod tile;
 pub mod tree;
 pub mod view;

@@ -1,0 +1,144 @@
+use super::*;
+use crate::tile::TileShape;
+use proptest::prelude::*;
+
+/// A random DEM of `w` x `h` samples in quanta.
+fn dem(w: u32, h: u32, seed: u64, amp: i32) -> Vec<i32> {
+    let mut x = seed | 1;
+    (0..w * h)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x % (2 * amp as u64 + 1)) as i32 - amp
+        })
+        .collect()
+}
+
+fn tile_z(shape: &TileShape, t: TileId, d: &[i32]) -> Vec<i32> {
+    let sp = shape.span(t);
+    (0..sp.vertex_count() as u32)
+        .map(|v| {
+            let (c, r) = sp.vertex_pos(v);
+            d[(r * shape.width() + c) as usize]
+        })
+        .collect()
+}
+
+/// The triangle of a patch as grid positions with heights.
+type Tri = [(u32, u32, i32); 3];
+
+fn patch_tris(shape: &TileShape, t: TileId, d: &[i32]) -> Vec<Tri> {
+    let sp = shape.span(t);
+    let z = tile_z(shape, t, d);
+    let p = find_patches(shape, t, &z, |c, r| d[(r * shape.width() + c) as usize]);
+    let at = |v: u32| {
+        let (c, r) = sp.vertex_pos(v);
+        (c, r, z[v as usize])
+    };
+    let mut out: Vec<Tri> = p
+        .dropped
+        .iter()
+        .map(|q| [at(q.a), (q.at.0, q.at.1, q.z), at(q.c)])
+        .collect();
+    out.extend(p.raised.iter().map(|r| [at(r[0]), at(r[1]), at(r[2])]));
+    out
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    #[test]
+    fn meshes_and_patches_round_trip(w in 3u32..80, h in 3u32..80, t in 1u32..4, seed in any::<u64>(), amp in 0i32..100_000) {
+        let shape = TileShape::new(w, h, 1 << t).unwrap();
+        let d = dem(w, h, seed, amp);
+        for i in 0..shape.tile_count() {
+            let tile = shape.tile(i).unwrap();
+            let sp = shape.span(tile);
+            let z = tile_z(&shape, tile, &d);
+            let mesh = encode_mesh(&sp, &z);
+            prop_assert_eq!(decode_mesh(&sp, &mesh).unwrap(), z.clone());
+            let p = find_patches(&shape, tile, &z, |c, r| d[(r * w + c) as usize]);
+            let blob = encode_patches(&shape, tile, &z, &p);
+            prop_assert_eq!(decode_patches(&shape, tile, &z, &blob).unwrap(), p);
+        }
+    }
+
+    #[test]
+    fn random_bodies_never_panic_or_overallocate(bytes in proptest::collection::vec(any::<u8>(), 0..300)) {
+        let shape = TileShape::new(200, 150, 64).unwrap();
+        for i in 0..shape.tile_count() {
+            let t = shape.tile(i).unwrap();
+            let sp = shape.span(t);
+            if let Ok(z) = decode_mesh(&sp, &bytes) {
+                prop_assert_eq!(z.len(), sp.vertex_count());
+                let _ = decode_patches(&shape, t, &z, &bytes);
+            }
+            let _ = decode_patches(&shape, t, &vec![0; sp.vertex_count()], &bytes);
+        }
+    }
+
+    /// Paper 001's rule, checked against the geometry: wherever a tile meets a neighbour's child
+    /// (one level finer), every finer vertex off the coarse edge has exactly one patch, the
+    /// triangle from the coarse segment to it, and no other patch exists there.
+    #[test]
+    fn patches_exist_exactly_where_the_finer_vertex_leaves_the_coarse_edge(
+        w in 3u32..70, h in 3u32..70, seed in any::<u64>(), amp in 0i32..50) {
+        let shape = TileShape::new(w, h, 4).unwrap();
+        let d = dem(w, h, seed, amp);
+        let z_at = |c: u32, r: u32| d[(r * w + c) as usize] as i64;
+        let mut checked = 0;
+        for i in 0..shape.tile_count() {
+            let t = shape.tile(i).unwrap();
+            let mine = patch_tris(&shape, t, &d);
+            for e in crate::tile::EDGES {
+                let Some(n) = shape.neighbour(t, e) else { continue };
+                let sp = shape.span(t);
+                let edge: Vec<(u32, u32)> = sp.edge_vertices(e).iter().map(|&v| sp.vertex_pos(v)).collect();
+                // The finer tiles across this edge: the neighbour's children that touch it.
+                let fine: Vec<TileId> = shape.children(n).collect();
+                let theirs: Vec<Tri> = fine.iter().flat_map(|&f| patch_tris(&shape, f, &d)).collect();
+                for seg in edge.windows(2) {
+                    let (a, c) = (seg[0], seg[1]);
+                    let mid = if a.0 == c.0 { (a.0, a.1 + sp.stride / 2) } else { (a.0 + sp.stride / 2, a.1) };
+                    if (mid.0, mid.1) >= (c.0, c.1) || fine.is_empty() { continue; }
+                    let (pa, pb, pc) = if a.0 == c.0 { (a.1, mid.1, c.1) } else { (a.0, mid.0, c.0) };
+                    let line = (z_at(a.0, a.1) * (pc - pb) as i64 + z_at(c.0, c.1) * (pb - pa) as i64) as f64 / (pc - pa) as f64;
+                    let zb = z_at(mid.0, mid.1) as f64;
+                    let has = |tris: &[Tri]| tris.iter().filter(|q| {
+                        q.iter().any(|p| (p.0, p.1) == mid) && q.iter().any(|p| (p.0, p.1) == a) && q.iter().any(|p| (p.0, p.1) == c)
+                    }).count();
+                    let (dropped, raised) = (has(&mine), has(&theirs));
+                    checked += 1;
+                    if zb < line {
+                        prop_assert_eq!((dropped, raised), (1, 0));
+                    } else if zb > line {
+                        prop_assert_eq!((dropped, raised), (0, 1));
+                    } else {
+                        prop_assert_eq!((dropped, raised), (0, 0));
+                    }
+                }
+            }
+        }
+        prop_assert!(checked > 0 || shape.depth() == 0);
+    }
+}
+
+#[test]
+fn grid_heights_interpolate_the_two_triangles() {
+    let shape = TileShape::new(5, 4, 4).unwrap();
+    let t = TileId::ROOT;
+    let sp = shape.span(t);
+    let z: Vec<f32> = (0..sp.vertex_count() as u32)
+        .map(|v| {
+            let (c, r) = sp.vertex_pos(v);
+            (3 * c + 5 * r) as f32
+        })
+        .collect();
+    // A plane is reproduced exactly, also in the narrower last row.
+    for &(c, r) in &[(0.5, 0.25), (3.9, 2.5), (1.0, 3.0), (2.2, 2.9)] {
+        assert!((grid_height(&sp, &z, c, r) - (3.0 * c + 5.0 * r)).abs() < 1e-4);
+    }
+    assert_eq!(grid_triangles(&sp).len(), 2 * 4 * 3);
+    assert_eq!(skirt_triangle_count(&sp), 4 * (4 + 3));
+}
