@@ -11,19 +11,42 @@ use crate::codec::{Decode, Encode};
 use crate::delta::{BodyError, Delta};
 use crate::snapshot::Snapshot;
 use crate::terrain::TerrainGeometry;
+use crate::tile::TileSetInfo;
 use crate::tree::{ShapeError, TreeShape};
 use crate::view::{Camera, Lens};
 
 /// The protocol version this crate speaks. A hello with another version is refused with
 /// [`CloseReason::Version`].
-pub const PROTOCOL_VERSION: u32 = 1;
+pub const PROTOCOL_VERSION: u32 = 2;
 
-/// Which stream a session receives. One kind today; the field exists so that a later engine
-/// can be offered without a new protocol version.
+/// Which stream a session receives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Encode, Decode)]
 pub enum StreamKind {
     /// The vertex stream of paper 000: Haar splits and merges of the vertex quadtree.
     Vertex,
+    /// The tile stream of paper 001: tiles with their crack patches ([`crate::tile`]).
+    Tiles(TileStreamParams),
+}
+
+/// How a tile session's cracks are closed: what its tile bodies carry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Encode, Decode)]
+pub enum CrackMode {
+    /// Tiles carry their precomputed crack patches, which the client always draws.
+    Patches,
+    /// Tiles carry no patches; the client hangs skirts from every tile edge (the baseline).
+    Skirts,
+    /// Tiles carry nothing for cracks (to show that cracks exist).
+    None,
+}
+
+/// What a tile session asks for beyond a vertex session.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Encode, Decode)]
+pub struct TileStreamParams {
+    /// The most tiles the client keeps, active and cached together ([`crate::tile::cache`]);
+    /// `u32::MAX` for no limit.
+    pub cache_tiles: u32,
+    /// What the tile bodies carry against cracks.
+    pub crack: CrackMode,
 }
 
 /// A camera pose on the wire.
@@ -172,6 +195,8 @@ pub struct Welcome {
     /// The server closes a session that sends nothing for this long, milliseconds: a client
     /// at rest should send a ping (or repeat its last acknowledgement) more often.
     pub idle_timeout_ms: u32,
+    /// The tile pyramid, in the welcome of a tile session (`None` for a vertex session).
+    pub tiles: Option<TileSetInfo>,
 }
 
 /// A delta as it travels: the header in the clear, merges and splits in the compact body
@@ -354,7 +379,7 @@ mod tests {
     #[test]
     fn the_welcome_example_of_the_protocol_doc_is_what_the_code_sends() {
         let w = ServerMsg::Welcome(Welcome {
-            version: 1,
+            version: 2,
             session_id: 42,
             terrain: TerrainInfo {
                 id: 0x0123_4567_89AB_CDEF,
@@ -371,6 +396,7 @@ mod tests {
             max_in_flight: 4,
             max_message_bytes: 1 << 20,
             idle_timeout_ms: 60_000,
+            tiles: None,
         });
         let doc = include_str!("../../docs/protocol.md");
         let start = doc.find("**Welcome** (session 42").expect("the example");

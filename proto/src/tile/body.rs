@@ -386,7 +386,12 @@ pub fn grid_height(span: &TileSpan, z: &[f32], col: f32, row: f32) -> f32 {
     let u = ((col - c0) / (c1 - c0)).clamp(0.0, 1.0);
     let v = ((row - r0) / (r1 - r0)).clamp(0.0, 1.0);
     let at = (j * nx + i) as usize;
-    let (z00, z10, z01, z11) = (z[at], z[at + 1], z[at + nx as usize], z[at + nx as usize + 1]);
+    let (z00, z10, z01, z11) = (
+        z[at],
+        z[at + 1],
+        z[at + nx as usize],
+        z[at + nx as usize + 1],
+    );
     if u <= v {
         z00 + v * (z01 - z00) + u * (z11 - z01)
     } else {

@@ -166,9 +166,18 @@ mod tests {
         let ev = c.apply(&[1, 2], &[0], |_| true).unwrap();
         assert_eq!(ev, vec![1, 2]);
         assert_eq!((c.held_count(), c.active()), (3, vec![0, 3, 4]));
-        assert_eq!(c.apply(&[7], &[], |_| true), Err(TileSetError::NotActive(7)));
-        assert_eq!(c.apply(&[], &[3], |_| true), Err(TileSetError::AlreadyActive(3)));
-        assert_eq!(c.apply(&[], &[9], |_| false), Err(TileSetError::NotCached(9)));
+        assert_eq!(
+            c.apply(&[7], &[], |_| true),
+            Err(TileSetError::NotActive(7))
+        );
+        assert_eq!(
+            c.apply(&[], &[3], |_| true),
+            Err(TileSetError::AlreadyActive(3))
+        );
+        assert_eq!(
+            c.apply(&[], &[9], |_| false),
+            Err(TileSetError::NotCached(9))
+        );
         assert_eq!(c.digest(), set_digest(c.active()));
     }
 

@@ -195,10 +195,22 @@ mod tests {
 
     #[test]
     fn lying_counts_and_lengths_are_refused() {
-        assert_eq!(TileDelta::decode(&[0xFF, 0xFF, 0xFF, 0x0F], 10), Err(TileDeltaError::Truncated));
-        assert_eq!(TileDelta::decode(&[0, 1, 3, 100, 0], 10), Err(TileDeltaError::Truncated));
-        assert_eq!(TileDelta::decode(&[1, 20, 0], 10), Err(TileDeltaError::Tile(20)));
-        assert_eq!(TileDelta::decode(&[0, 0, 9], 10), Err(TileDeltaError::Trailing(1)));
+        assert_eq!(
+            TileDelta::decode(&[0xFF, 0xFF, 0xFF, 0x0F], 10),
+            Err(TileDeltaError::Truncated)
+        );
+        assert_eq!(
+            TileDelta::decode(&[0, 1, 3, 100, 0], 10),
+            Err(TileDeltaError::Truncated)
+        );
+        assert_eq!(
+            TileDelta::decode(&[1, 20, 0], 10),
+            Err(TileDeltaError::Tile(20))
+        );
+        assert_eq!(
+            TileDelta::decode(&[0, 0, 9], 10),
+            Err(TileDeltaError::Trailing(1))
+        );
         assert_eq!(TileDelta::decode(&[0, 0], 10), Ok(TileDelta::default()));
     }
 }

@@ -7,7 +7,10 @@
 //! - [`delta`]: tiles removed and added between two selections, and their byte layout;
 //! - [`cache`]: the active set, its digest and the client's tile cache, which both ends keep
 //!   with one deterministic eviction rule so that the server never sends a tile twice;
-//! - [`snapshot`]: an active tile set in one bit per inner tile, for resume.
+//! - [`snapshot`]: an active tile set in one bit per inner tile, for resume, and the
+//!   restriction check;
+//! - [`mirror`]: the client's decoded tiles, rebuilt from deltas and checked by digest;
+//! - [`geometry`]: a held tile's triangles in world metres, with its patches or skirts.
 //!
 //! **Pyramid.** Tiles have `T` x `T` cells (T a power of two, 64 by default). The finest level
 //! `L` has a vertex every sample; level `k` has one every `s = 2^(L-k)` samples. Tile `(k, x, y)`
@@ -26,6 +29,8 @@
 pub mod body;
 pub mod cache;
 pub mod delta;
+pub mod geometry;
+pub mod mirror;
 pub mod snapshot;
 
 use crate::codec::{Decode, Encode};
@@ -312,7 +317,11 @@ impl TileSetInfo {
     /// How far skirts hang below tiles of `level`, metres (Cesium's rule: five times the
     /// level's largest geometric error).
     pub fn skirt_height(&self, level: u8) -> f32 {
-        5.0 * self.level_errors.get(level as usize).copied().unwrap_or(0.0)
+        5.0 * self
+            .level_errors
+            .get(level as usize)
+            .copied()
+            .unwrap_or(0.0)
     }
 }
 
@@ -322,7 +331,13 @@ mod tests {
 
     #[test]
     fn pyramid_covers_any_grid_once_per_level() {
-        for &(w, h, t) in &[(5, 3, 2), (257, 193, 64), (65, 65, 64), (300, 70, 16), (2, 2, 64)] {
+        for &(w, h, t) in &[
+            (5, 3, 2),
+            (257, 193, 64),
+            (65, 65, 64),
+            (300, 70, 16),
+            (2, 2, 64),
+        ] {
             let s = TileShape::new(w, h, t).unwrap();
             assert_eq!(s.level_dims(0), (1, 1), "{w}x{h}");
             assert_eq!(s.stride(s.depth()), 1);

@@ -5,7 +5,7 @@
 //! from the least significant bit up; the digest is [`super::cache::set_digest`] of the set.
 
 use super::cache::set_digest;
-use super::{Edge, TileId, TileShape, EDGES};
+use super::{EDGES, Edge, TileId, TileShape};
 use crate::snapshot::{Snapshot, SnapshotError};
 use rustc_hash::FxHashSet;
 
@@ -155,10 +155,16 @@ mod tests {
         active.sort_unstable();
         let snap = snapshot_of(&s, &active);
         assert_eq!(active_of(&s, &snap, 1000).unwrap(), active);
-        assert!(matches!(active_of(&s, &snap, 2), Err(SnapshotError::TooLarge(2))));
+        assert!(matches!(
+            active_of(&s, &snap, 2),
+            Err(SnapshotError::TooLarge(2))
+        ));
         let mut bad = snap.clone();
         bad.digest ^= 1;
-        assert!(matches!(active_of(&s, &bad, 1000), Err(SnapshotError::Digest { .. })));
+        assert!(matches!(
+            active_of(&s, &bad, 1000),
+            Err(SnapshotError::Digest { .. })
+        ));
         // c0.child(1) is split while its east neighbour (level 1) is not: two levels apart.
         assert!(restriction_violations(&s, &active) > 0);
     }

@@ -1,0 +1,171 @@
+//! The client's side of a tile session: the active tiles and the cached ones, decoded, rebuilt
+//! from tile deltas alone and checked by digest. A thin client needs nothing else: each held
+//! tile's [`TileData`] gives its triangles ([`super::geometry`]), patches included.
+
+use super::body::{Patches, TileBodyError, decode_mesh, decode_patches};
+use super::cache::{TileCache, TileSetError};
+use super::delta::{TileDelta, TileDeltaError};
+use super::{TileId, TileShape, TileSpan};
+use crate::msg::{CrackMode, TileStreamParams, WireDelta};
+use crate::snapshot::Snapshot;
+use rustc_hash::FxHashMap;
+
+/// A tile the client holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TileData {
+    /// Which tile.
+    pub tile: TileId,
+    /// The samples it covers.
+    pub span: TileSpan,
+    /// Vertex heights, z quanta, row-major over the span.
+    pub z: Vec<i32>,
+    /// Its crack patches (empty unless the session draws patches).
+    pub patches: Patches,
+}
+
+/// A delta the mirror could not apply: the session is out of step and must resume.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum TileMirrorError {
+    /// The body does not decode.
+    #[error(transparent)]
+    Delta(#[from] TileDeltaError),
+    /// A tile body does not decode.
+    #[error("tile {0}: {1}")]
+    Body(u32, TileBodyError),
+    /// The change does not apply to the held set.
+    #[error(transparent)]
+    Set(#[from] TileSetError),
+    /// The active set after the delta is not the server's.
+    #[error("tile set digest mismatch: ours {ours:#018x}, the server's {theirs:#018x}")]
+    Digest {
+        /// Ours.
+        ours: u64,
+        /// The delta's.
+        theirs: u64,
+    },
+}
+
+/// What one delta changed.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TileChanges {
+    /// Tiles no longer drawn.
+    pub removed: Vec<u32>,
+    /// Tiles drawn from now on.
+    pub added: Vec<u32>,
+    /// Tiles dropped from the cache.
+    pub evicted: Vec<u32>,
+    /// Added tiles that came with a body (the rest came from the cache).
+    pub sent: usize,
+}
+
+/// The client's tiles.
+#[derive(Clone, Debug)]
+pub struct TileMirror {
+    /// The pyramid.
+    shape: TileShape,
+    /// What the bodies carry.
+    crack: CrackMode,
+    /// Active and cached tiles, as the server models them.
+    cache: TileCache,
+    /// Every held tile's data, by dense index.
+    tiles: FxHashMap<u32, TileData>,
+}
+
+impl TileMirror {
+    /// An empty mirror for a session opened with `params`.
+    pub fn new(shape: TileShape, params: TileStreamParams) -> TileMirror {
+        TileMirror {
+            shape,
+            crack: params.crack,
+            cache: TileCache::new(params.cache_tiles),
+            tiles: FxHashMap::default(),
+        }
+    }
+
+    /// The pyramid.
+    pub fn shape(&self) -> &TileShape {
+        &self.shape
+    }
+
+    /// Applies one delta and checks its digest. On error the mirror may be partly changed and
+    /// must be rebuilt (resume).
+    pub fn apply(&mut self, wire: &WireDelta) -> Result<TileChanges, TileMirrorError> {
+        let d = TileDelta::decode(&wire.body, self.shape.tile_count())?;
+        let mut decoded = Vec::with_capacity(d.added.len());
+        for a in &d.added {
+            let Some(b) = &a.body else {
+                decoded.push(None);
+                continue;
+            };
+            let tile = self
+                .shape
+                .tile(a.tile)
+                .ok_or(TileMirrorError::Delta(TileDeltaError::Tile(a.tile as u64)))?;
+            let span = self.shape.span(tile);
+            let z = decode_mesh(&span, &b.mesh).map_err(|e| TileMirrorError::Body(a.tile, e))?;
+            let patches = if self.crack == CrackMode::Patches {
+                decode_patches(&self.shape, tile, &z, &b.patches)
+                    .map_err(|e| TileMirrorError::Body(a.tile, e))?
+            } else {
+                Patches::default()
+            };
+            decoded.push(Some(TileData {
+                tile,
+                span,
+                z,
+                patches,
+            }));
+        }
+        let added: Vec<u32> = d.added.iter().map(|a| a.tile).collect();
+        let evicted = self
+            .cache
+            .apply(&d.removed, &added, |i| decoded[i].is_some())?;
+        let mut sent = 0;
+        for (i, data) in decoded.into_iter().enumerate() {
+            if let Some(data) = data {
+                self.tiles.insert(added[i], data);
+                sent += 1;
+            }
+        }
+        for t in &evicted {
+            self.tiles.remove(t);
+        }
+        if self.cache.digest() != wire.digest {
+            return Err(TileMirrorError::Digest {
+                ours: self.cache.digest(),
+                theirs: wire.digest,
+            });
+        }
+        Ok(TileChanges {
+            removed: d.removed,
+            added,
+            evicted,
+            sent,
+        })
+    }
+
+    /// A held tile's data.
+    pub fn tile(&self, index: u32) -> Option<&TileData> {
+        self.tiles.get(&index)
+    }
+
+    /// The active tiles' dense indices, ascending.
+    pub fn active(&self) -> Vec<u32> {
+        self.cache.active()
+    }
+
+    /// Digest of the active set.
+    pub fn digest(&self) -> u64 {
+        self.cache.digest()
+    }
+
+    /// Tiles held, active and cached.
+    pub fn held_count(&self) -> usize {
+        self.tiles.len()
+    }
+
+    /// The resume snapshot of the active set.
+    pub fn snapshot(&self) -> Snapshot {
+        super::snapshot::snapshot_of(&self.shape, &self.active())
+    }
+}
