@@ -39,6 +39,10 @@ enum Command {
         /// Metres per stored height unit [default: 1 for whole-metre DEMs, else 0.1].
         #[arg(long)]
         z_quantum: Option<f64>,
+        /// Cells per side of the tile stream's tiles: a power of two from 2 to 256 (64 gives
+        /// Cesium's 65 x 65-vertex tiles).
+        #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
+        tile_size: u32,
         #[command(flatten)]
         dem: DemArgs,
     },
@@ -159,20 +163,23 @@ fn run() -> anyhow::Result<()> {
             input,
             output,
             z_quantum,
+            tile_size,
             dem,
         } => {
+            relief_proto::tile::TileShape::new(2, 2, tile_size)?;
             let d = dem.load(&input)?;
-            let rep = preprocess::build_store(&d, &output, z_quantum, !dem.quiet)
+            let rep = preprocess::build_store(&d, &output, z_quantum, tile_size, !dem.quiet)
                 .context("cannot build the store")?;
             let samples = d.width as f64 * d.height as f64;
             tracing::info!(
-                "wrote {} ({} bytes): {}x{} samples, tree built in {:.2} s ({:.1} M samples/s)",
+                "wrote {} ({} bytes): {}x{} samples, tree built in {:.2} s ({:.1} M samples/s), tiles in {:.2} s",
                 output.display(),
                 rep.bytes,
                 d.width,
                 d.height,
                 rep.tree_s,
-                samples / rep.tree_s.max(1e-9) / 1e6
+                samples / rep.tree_s.max(1e-9) / 1e6,
+                rep.tiles_s
             );
         }
         Command::Info { store } => {
@@ -187,6 +194,13 @@ fn run() -> anyhow::Result<()> {
                 "nodes": g.shape.node_count(),
                 "spacing_m": [g.frame.dx, g.frame.dy],
                 "z_quantum_m": g.z_quantum,
+                "tiles": {
+                    "tile_size": s.tile_info().tile_size,
+                    "depth": s.tile_info().depth,
+                    "mesh": s.tile_info().mesh,
+                    "level_errors_m": s.tile_info().level_errors,
+                },
+                "tile_count": s.tile_shape().tile_count(),
                 "meta": s.meta(),
             });
             println!("{}", serde_json::to_string_pretty(&info)?);

@@ -11,6 +11,8 @@ pub struct BuildReport {
     pub bytes: u64,
     /// Seconds spent building the tree (excluding reading the DEM and writing the file).
     pub tree_s: f64,
+    /// Seconds spent building the tile pyramid.
+    pub tiles_s: f64,
 }
 
 /// The z quantum a DEM gets when none is asked for: 1 m when every valid sample is a whole
@@ -30,6 +32,7 @@ pub fn build_store(
     dem: &Dem,
     path: &Path,
     quantum: Option<f64>,
+    tile_size: u32,
     progress: bool,
 ) -> Result<BuildReport, StoreError> {
     let quantum = quantum.unwrap_or_else(|| default_quantum(dem));
@@ -46,6 +49,7 @@ pub fn build_store(
         z_quantum: quantum,
         heights: &dem.heights,
         voids: &voids,
+        tile_size,
         meta: StoreMeta {
             source: dem.source.clone(),
             crs: dem.crs.clone(),
@@ -54,8 +58,13 @@ pub fn build_store(
             void_count: voids.iter().filter(|v| **v).count() as u64,
         },
     };
-    let bar = crate::bench::progress_bar(progress, 1000, "tree");
-    let (bytes, tree_s) = write_store(path, &input, |f| bar.set_position((f * 1000.0) as u64))?;
+    let bar = crate::bench::progress_bar(progress, 1000, "tree and tiles");
+    let (bytes, tree_s, tiles_s) =
+        write_store(path, &input, |f| bar.set_position((f * 1000.0) as u64))?;
     bar.finish_and_clear();
-    Ok(BuildReport { bytes, tree_s })
+    Ok(BuildReport {
+        bytes,
+        tree_s,
+        tiles_s,
+    })
 }

@@ -10,7 +10,7 @@
 use super::stats::{mean, median, quantile};
 use crate::dem::Dem;
 use crate::lod::measure::{Lattice, frame_errors};
-use crate::lod::session::VertexSession;
+use crate::lod::vertex::session::VertexSession;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use crate::preprocess;
 use crate::store::Store;
@@ -152,7 +152,13 @@ pub struct LodBenchReport {
 pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> {
     let dir = tempfile::tempdir()?;
     let store_path = dir.path().join("bench.relief");
-    let built = preprocess::build_store(dem, &store_path, None, opts.progress)?;
+    let built = preprocess::build_store(
+        dem,
+        &store_path,
+        None,
+        crate::store::DEFAULT_TILE_SIZE,
+        opts.progress,
+    )?;
     let store = Store::open(&store_path)?;
     let engine = VertexEngine::new(&store);
     let geom = store.geometry();

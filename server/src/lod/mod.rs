@@ -1,17 +1,10 @@
 //! LOD engines: pure modules, no async, unit-testable and benchmarkable.
 //!
-//! - [`vertex`]: the vertex stream (paper 000): screen errors, initial cut, coherent updates.
-//! - [`session`]: one session's cut with event-driven updates that re-examine only the nodes
-//!   whose decision can have changed.
-//! - [`budget`]: the bandwidth-budgeted update: merges, then the splits that remove the most
-//!   screen error per byte, up to a byte budget (DESIGN.md section 6).
-//! - [`diff`]: the delta between two arbitrary cuts, for the stateless HTTP one-shot.
+//! - [`vertex`]: the vertex stream (paper 000): screen errors, the initial cut, coherent and
+//!   event-driven session updates, the bandwidth-budgeted update, cut diffs.
+//! - [`tile`]: the tile stream (paper 001): the tile pyramid's build, the restricted
+//!   screen-space-error selection, and a session's budgeted, cache-aware tile deltas.
 //! - [`measure`]: the measured pixel error of a mesh for a camera (DESIGN.md section 7).
-pub mod budget;
-pub mod diff;
 pub mod measure;
-pub mod session;
+pub mod tile;
 pub mod vertex;
-
-#[cfg(test)]
-pub(crate) mod tests;

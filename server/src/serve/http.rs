@@ -4,7 +4,7 @@
 
 use super::state::{AppState, Terrain};
 use super::validate;
-use crate::lod::diff::diff_delta;
+use crate::lod::vertex::diff::diff_delta;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use axum::Json;
 use axum::body::Body;

@@ -114,10 +114,12 @@ pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, S
         d.height,
         path.display()
     );
-    preprocess::build_store(&d, &path, None, true).map_err(|source| SourceError::Store {
-        path: path.display().to_string(),
-        source,
-    })?;
+    preprocess::build_store(&d, &path, None, crate::store::DEFAULT_TILE_SIZE, true).map_err(
+        |source| SourceError::Store {
+            path: path.display().to_string(),
+            source,
+        },
+    )?;
     open(&path)
 }
 

@@ -1,5 +1,8 @@
-//! The LOD side of one session, without I/O: its cut, its engine state and the deltas it
-//! produces (DESIGN.md section 6, "Updates" and "Budget").
+//! The LOD side of one session, without I/O: its cut or tile set, its engine state and the
+//! delta bodies it produces (DESIGN.md section 6, "Updates" and "Budget"). The session flow
+//! around it (window, budget tokens, resume, closes) is the same for both streams.
+//!
+//! A tile session runs [`TileSession`] (budgeted or not, the same code).
 //!
 //! Without a bandwidth budget a session runs the event-driven [`VertexSession`], which yields
 //! the deltas of the paper's full top-down pass (paper 000, section 3.4). With a budget it
@@ -8,11 +11,13 @@
 //! delta that leaves splits for later is marked incomplete, and the session sends the rest as
 //! the budget refills, without a new pose.
 
-use crate::lod::budget;
-use crate::lod::session::VertexSession;
+use crate::lod::tile::TileEngine;
+use crate::lod::tile::session::TileSession;
+use crate::lod::vertex::budget;
+use crate::lod::vertex::session::VertexSession;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
+use crate::store::Store;
 use relief_proto::cut::Cut;
-use relief_proto::delta::Delta;
 use relief_proto::view::{Camera, Lens, ViewState};
 
 /// How a session's cut is kept.
@@ -21,6 +26,8 @@ enum Lod {
     Coherent(VertexSession),
     /// Budgeted: the cut alone, updated by the budgeted full pass.
     Budgeted(Cut),
+    /// The tile stream.
+    Tiles(TileSession),
 }
 
 /// One session's LOD state.
@@ -37,10 +44,14 @@ pub struct Stream {
 
 /// One produced delta.
 pub struct Produced {
-    /// The delta, canonical, with its digest.
-    pub delta: Delta,
+    /// Sequence number of the delta in the session.
+    pub seq: u64,
+    /// Digest of the cut or tile set after it.
+    pub digest: u64,
     /// Whether the cut now meets tau for the camera (always true without a budget).
     pub complete: bool,
+    /// The packed body.
+    pub body: Vec<u8>,
 }
 
 impl Stream {
@@ -71,6 +82,16 @@ impl Stream {
         }
     }
 
+    /// A tile stream continuing from `session`.
+    pub fn tiles(session: TileSession, lens: Lens) -> Stream {
+        Stream {
+            lod: Lod::Tiles(session),
+            params: LodParams::default(),
+            lens,
+            seq: 0,
+        }
+    }
+
     /// An empty stream that holds a session's place while its state is on a worker thread.
     pub fn placeholder() -> Stream {
         Stream {
@@ -81,40 +102,45 @@ impl Stream {
         }
     }
 
-    /// The next delta for `camera`; `max_body_bytes` bounds a budgeted delta's body.
-    pub fn update(
-        &mut self,
-        engine: &VertexEngine<'_>,
-        camera: &Camera,
-        max_body_bytes: usize,
-    ) -> Produced {
+    /// The next delta for `camera`, packed; `max_body_bytes` bounds a budgeted delta's body.
+    pub fn update(&mut self, store: &Store, camera: &Camera, max_body_bytes: usize) -> Produced {
         self.seq += 1;
+        let seq = self.seq;
         let view = ViewState::new(camera, &self.lens);
-        match &mut self.lod {
-            Lod::Coherent(s) => Produced {
-                delta: s.update(
-                    engine,
-                    &view,
-                    &self.params,
-                    self.seq,
-                    &mut UpdateStats::default(),
-                ),
-                complete: true,
-            },
-            Lod::Budgeted(cut) => {
-                let b = budget::budgeted_update(
-                    engine,
-                    cut,
-                    &view,
-                    &self.params,
-                    max_body_bytes,
-                    self.seq,
-                );
-                Produced {
-                    delta: b.delta,
-                    complete: b.complete,
-                }
+        let (delta, complete) = match &mut self.lod {
+            Lod::Tiles(s) => {
+                let u = s.update(&TileEngine::new(store), &view, max_body_bytes);
+                return Produced {
+                    seq,
+                    digest: u.digest,
+                    complete: u.complete,
+                    body: u.delta.encode(),
+                };
             }
+            Lod::Coherent(s) => {
+                let engine = VertexEngine::new(store);
+                let d = s.update(
+                    &engine,
+                    &view,
+                    &self.params,
+                    seq,
+                    &mut UpdateStats::default(),
+                );
+                (d, true)
+            }
+            Lod::Budgeted(cut) => {
+                let engine = VertexEngine::new(store);
+                let b =
+                    budget::budgeted_update(&engine, cut, &view, &self.params, max_body_bytes, seq);
+                (b.delta, b.complete)
+            }
+        };
+        let g = store.geometry();
+        Produced {
+            seq,
+            digest: delta.digest,
+            complete,
+            body: delta.pack_body(&g.shape, g.z_quantum),
         }
     }
 
@@ -123,6 +149,7 @@ impl Stream {
         match &self.lod {
             Lod::Coherent(s) => s.digest(),
             Lod::Budgeted(c) => c.digest(),
+            Lod::Tiles(s) => s.digest(),
         }
     }
 
@@ -131,6 +158,8 @@ impl Stream {
         match &self.lod {
             Lod::Coherent(s) => s.at_limit(),
             Lod::Budgeted(c) => c.interior_count() >= max_interior,
+            // A tile selection is bounded by the pyramid, which the store bounds.
+            Lod::Tiles(_) => false,
         }
     }
 
@@ -139,6 +168,7 @@ impl Stream {
         match &self.lod {
             Lod::Coherent(s) => s.active_count(),
             Lod::Budgeted(c) => c.active_count(),
+            Lod::Tiles(s) => s.active_count(),
         }
     }
 
@@ -147,6 +177,7 @@ impl Stream {
         match &self.lod {
             Lod::Coherent(s) => s.memory_bytes(),
             Lod::Budgeted(c) => c.memory_bytes(),
+            Lod::Tiles(s) => s.memory_bytes(),
         }
     }
 }

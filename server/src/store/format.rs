@@ -1,4 +1,5 @@
-//! The store file: one versioned, checksummed file holding the vertex quadtree.
+//! The store file: one versioned, checksummed file holding the vertex quadtree and the tile
+//! pyramid.
 //!
 //! Layout, all little-endian:
 //! - a 256-byte header: magic `RELIEFST`, format version, grid size, spacing, z quantum, then
@@ -6,7 +7,9 @@
 //!   the header itself;
 //! - the sections, each aligned to 8 bytes so that they can be read in place from the map:
 //!   `z` (i32 per node), `err` (u8 per inner node), `zmin` and `zmax` (i32 per inner node),
-//!   `voids` (one bit per sample, row-major, 1 = no data in the source), `meta` (JSON).
+//!   `voids` (one bit per sample, row-major, 1 = no data in the source), `meta` (JSON), `tiles`
+//!   (one 32-byte [`super::tiles::TileRecord`] per tile by dense index) and `tile_data` (the
+//!   tiles' mesh and patch blobs).
 //!
 //! Opening checks the magic, the version, the header CRC, that every section lies inside the file
 //! and has the length the grid implies, and the sections' CRC. Any failure is a [`StoreError`]
@@ -18,11 +21,24 @@ use std::io::Write;
 /// File magic: the first eight bytes of every store.
 pub const MAGIC: &[u8; 8] = b"RELIEFST";
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 /// Header size in bytes.
 pub const HEADER_LEN: usize = 256;
 /// Section order in the file.
-pub const SECTIONS: [&str; 6] = ["z", "err", "zmin", "zmax", "voids", "meta"];
+pub const SECTIONS: [&str; 8] = [
+    "z",
+    "err",
+    "zmin",
+    "zmax",
+    "voids",
+    "meta",
+    "tiles",
+    "tile_data",
+];
+/// Number of sections.
+pub const SECTION_COUNT: usize = SECTIONS.len();
+/// Where the body CRC sits in the header, after the section table.
+const BODY_CRC_AT: usize = 48 + 16 * SECTION_COUNT;
 
 /// The fixed fields of the header.
 #[derive(Clone, Debug, PartialEq)]
@@ -37,8 +53,10 @@ pub struct Header {
     pub spacing_y: f64,
     /// Metres per integer height unit.
     pub z_quantum: f64,
+    /// Cells per side of the tile pyramid's tiles.
+    pub tile_size: u32,
     /// (offset, length) in bytes of each section, in [`SECTIONS`] order.
-    pub sections: [(u64, u64); 6],
+    pub sections: [(u64, u64); SECTION_COUNT],
     /// CRC-32 of all section bytes, in file order.
     pub body_crc: u32,
 }
@@ -59,7 +77,8 @@ impl Header {
             b[at..at + 8].copy_from_slice(&off.to_le_bytes());
             b[at + 8..at + 16].copy_from_slice(&len.to_le_bytes());
         }
-        b[144..148].copy_from_slice(&self.body_crc.to_le_bytes());
+        b[BODY_CRC_AT..BODY_CRC_AT + 4].copy_from_slice(&self.body_crc.to_le_bytes());
+        b[BODY_CRC_AT + 4..BODY_CRC_AT + 8].copy_from_slice(&self.tile_size.to_le_bytes());
         let crc = crc32fast::hash(&b[..HEADER_LEN - 4]);
         b[HEADER_LEN - 4..].copy_from_slice(&crc.to_le_bytes());
         b
@@ -95,7 +114,7 @@ impl Header {
         if crc32fast::hash(&b[..HEADER_LEN - 4]) != u32_at(HEADER_LEN - 4) {
             return Err(StoreError::Corrupt("header checksum mismatch".into()));
         }
-        let mut sections = [(0u64, 0u64); 6];
+        let mut sections = [(0u64, 0u64); SECTION_COUNT];
         for (i, s) in sections.iter_mut().enumerate() {
             *s = (u64_at(48 + 16 * i), u64_at(56 + 16 * i));
             let end =
@@ -120,8 +139,9 @@ impl Header {
             spacing_x: f64::from_bits(u64_at(24)),
             spacing_y: f64::from_bits(u64_at(32)),
             z_quantum: f64::from_bits(u64_at(40)),
+            tile_size: u32_at(BODY_CRC_AT + 4),
             sections,
-            body_crc: u32_at(144),
+            body_crc: u32_at(BODY_CRC_AT),
         })
     }
 }
@@ -130,7 +150,7 @@ impl Header {
 pub fn write_sections<W: Write + std::io::Seek>(
     out: &mut W,
     mut header: Header,
-    sections: [&[u8]; 6],
+    sections: [&[u8]; SECTION_COUNT],
 ) -> std::io::Result<u64> {
     use std::io::SeekFrom;
     out.write_all(&[0u8; HEADER_LEN])?;

@@ -1,7 +1,8 @@
-//! The preprocessed store: the vertex quadtree of one DEM, written once, memory-mapped by the
-//! server and shared by every session.
+//! The preprocessed store: the vertex quadtree and the tile pyramid of one DEM, written once,
+//! memory-mapped by the server and shared by every session.
 //!
 //! - [`build`]: heights to the tree's arrays (Haar pyramid, z-bounds, saturated errors).
+//! - [`tiles`]: heights to the tile pyramid (meshes, crack patches, errors, bounds).
 //! - [`format`]: the versioned, checksummed file layout.
 //! - [`mmap`]: the one unsafe call, mapping the file.
 //!
@@ -10,14 +11,17 @@
 pub mod build;
 pub mod format;
 mod mmap;
+pub mod tiles;
 
 use format::{HEADER_LEN, Header};
 use memmap2::Mmap;
 use relief_proto::terrain::TerrainGeometry;
+use relief_proto::tile::{TileSetInfo, TileShape};
 use relief_proto::tree::NodeId;
 use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::path::Path;
+use tiles::TileRecord;
 
 /// Why a store could not be written or opened.
 #[derive(Debug, thiserror::Error)]
@@ -90,18 +94,24 @@ pub struct StoreInput<'a> {
     pub heights: &'a [f32],
     /// Row-major void flags (true = no data in the source).
     pub voids: &'a [bool],
+    /// Cells per side of the tile pyramid's tiles.
+    pub tile_size: u32,
     /// Descriptive metadata.
     pub meta: StoreMeta,
 }
 
-/// Builds the tree for `input` and writes it to `path` (through a temporary file and a rename,
-/// so that a mapped store is never overwritten in place). Returns the file size and the seconds
-/// the tree build itself took.
+/// Default tile size in cells (65 x 65 vertices, as Cesium's terrain tiles).
+pub const DEFAULT_TILE_SIZE: u32 = 64;
+
+/// Builds the tree and the tile pyramid for `input` and writes them to `path` (through a
+/// temporary file and a rename, so that a mapped store is never overwritten in place).
+/// `progress` receives the fraction done (the tree the first half, the tiles the second).
+/// Returns the file size and the seconds the tree build and the tile build took.
 pub fn write_store(
     path: &Path,
     input: &StoreInput<'_>,
-    progress: impl FnMut(f64),
-) -> Result<(u64, f64), StoreError> {
+    mut progress: impl FnMut(f64),
+) -> Result<(u64, f64, f64), StoreError> {
     let geom = geometry(
         input.width,
         input.height,
@@ -109,9 +119,16 @@ pub fn write_store(
         input.spacing_y,
         input.z_quantum,
     )?;
+    let tshape = TileShape::new(input.width, input.height, input.tile_size)
+        .map_err(|e| StoreError::Corrupt(e.to_string()))?;
     let t0 = std::time::Instant::now();
-    let arrays = build::build_arrays(&geom, input.heights, progress);
+    let arrays = build::build_arrays(&geom, input.heights, |f| progress(f / 2.0));
     let build_s = t0.elapsed().as_secs_f64();
+    let t1 = std::time::Instant::now();
+    let pyramid = tiles::build_pyramid(&tshape, input.heights, input.z_quantum as f32, |f| {
+        progress(0.5 + f / 2.0)
+    });
+    let tiles_s = t1.elapsed().as_secs_f64();
     let mut voids = vec![0u8; input.voids.len().div_ceil(8)];
     for (i, _) in input.voids.iter().enumerate().filter(|(_, v)| **v) {
         voids[i / 8] |= 1 << (i % 8);
@@ -123,7 +140,8 @@ pub fn write_store(
         spacing_x: input.spacing_x,
         spacing_y: input.spacing_y,
         z_quantum: input.z_quantum,
-        sections: [(0, 0); 6],
+        tile_size: input.tile_size,
+        sections: [(0, 0); format::SECTION_COUNT],
         body_crc: 0,
     };
     let io = |source| StoreError::Io {
@@ -142,13 +160,15 @@ pub fn write_store(
             bytemuck::cast_slice(&arrays.zmax),
             &voids,
             &meta,
+            bytemuck::cast_slice(&pyramid.records),
+            &pyramid.data,
         ],
     )
     .map_err(io)?;
     let file = file.into_inner().map_err(|e| io(e.into_error()))?;
     file.sync_all().map_err(io)?;
     std::fs::rename(&tmp, path).map_err(io)?;
-    Ok((size, build_s))
+    Ok((size, build_s, tiles_s))
 }
 
 fn geometry(w: u32, h: u32, dx: f64, dy: f64, q: f64) -> Result<TerrainGeometry, StoreError> {
@@ -172,6 +192,10 @@ pub struct Store {
     geom: TerrainGeometry,
     /// Descriptive metadata.
     meta: StoreMeta,
+    /// The tile pyramid's shape.
+    tiles: TileShape,
+    /// What tile clients are told of the pyramid.
+    tile_info: TileSetInfo,
 }
 
 impl Store {
@@ -197,7 +221,18 @@ impl Store {
         let nodes = geom.shape.node_count();
         let inner = geom.shape.level_offset(geom.shape.depth());
         let samples = header.width as u64 * header.height as u64;
+        let tiles = TileShape::new(header.width, header.height, header.tile_size)
+            .map_err(|e| StoreError::Corrupt(e.to_string()))?;
+        let n_tiles = u64::from(tiles.tile_count());
         let expect = [nodes * 4, inner, inner * 4, inner * 4, samples.div_ceil(8)];
+        let record_len = std::mem::size_of::<TileRecord>() as u64;
+        if header.sections[6].1 != n_tiles * record_len {
+            return Err(StoreError::Corrupt(format!(
+                "section tiles holds {} bytes, the pyramid implies {}",
+                header.sections[6].1,
+                n_tiles * record_len
+            )));
+        }
         for (i, &len) in expect.iter().enumerate() {
             if header.sections[i].1 != len {
                 return Err(StoreError::Corrupt(format!(
@@ -217,12 +252,33 @@ impl Store {
         let (off, len) = header.sections[5];
         let meta = serde_json::from_slice(&map[off as usize..(off + len) as usize])
             .map_err(|e| StoreError::Corrupt(format!("metadata: {e}")))?;
-        Ok(Store {
+        let mut store = Store {
             map,
             header,
             geom,
             meta,
-        })
+            tile_info: TileSetInfo {
+                tile_size: tiles.tile_size(),
+                depth: tiles.depth(),
+                mesh: "grid".into(),
+                level_errors: vec![0.0; tiles.depth() as usize + 1],
+            },
+            tiles,
+        };
+        let data_len = store.section(7).len() as u64;
+        let mut level_errors = vec![0f32; store.tiles.depth() as usize + 1];
+        for (i, r) in store.tile_records().iter().enumerate() {
+            let end = r.offset + u64::from(r.mesh_len) + u64::from(r.patch_len);
+            if end > data_len || r.mesh_len == 0 || !r.error.is_finite() || r.zmin > r.zmax {
+                return Err(StoreError::Corrupt(format!(
+                    "tile record {i} is inconsistent"
+                )));
+            }
+            let level = store.tiles.tile(i as u32).map_or(0, |t| t.level as usize);
+            level_errors[level] = level_errors[level].max(r.error);
+        }
+        store.tile_info.level_errors = level_errors;
+        Ok(store)
     }
 
     fn section(&self, i: usize) -> &[u8] {
@@ -279,6 +335,31 @@ impl Store {
     pub fn err_code(&self, node: NodeId) -> u8 {
         let i = self.geom.shape.index(node) as usize;
         self.err().get(i).copied().unwrap_or(0)
+    }
+
+    /// The tile pyramid's shape.
+    pub fn tile_shape(&self) -> &TileShape {
+        &self.tiles
+    }
+
+    /// What tile clients are told of the pyramid.
+    pub fn tile_info(&self) -> &TileSetInfo {
+        &self.tile_info
+    }
+
+    /// Tile records by dense index.
+    pub fn tile_records(&self) -> &[TileRecord] {
+        bytemuck::try_cast_slice(self.section(6)).unwrap_or(&[])
+    }
+
+    /// The mesh blob and the patch blob of tile `index`.
+    pub fn tile_blobs(&self, index: u32) -> (&[u8], &[u8]) {
+        let Some(r) = self.tile_records().get(index as usize) else {
+            return (&[], &[]);
+        };
+        let data = self.section(7);
+        let (a, m) = (r.offset as usize, r.mesh_len as usize);
+        (&data[a..a + m], &data[a + m..a + m + r.patch_len as usize])
     }
 
     /// Size of the mapped file in bytes.

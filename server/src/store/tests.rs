@@ -11,6 +11,7 @@ fn input<'a>(heights: &'a [f32], voids: &'a [bool], w: u32, h: u32) -> StoreInpu
         z_quantum: 0.25,
         heights,
         voids,
+        tile_size: 8,
         meta: StoreMeta {
             source: "test".into(),
             ..StoreMeta::default()

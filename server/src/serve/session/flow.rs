@@ -3,7 +3,6 @@
 //! ends it.
 
 use super::io::{Ended, fail, receive, send};
-use crate::lod::vertex::VertexEngine;
 use crate::serve::state::{AppState, SessionStats, Terrain};
 use crate::serve::stream::{Produced, Stream as LodStream};
 use crate::serve::validate;
@@ -98,17 +97,17 @@ where
             } else {
                 usize::MAX
             };
-            let (produced, body) = compute(lod, terrain, state, camera, allowance).await?;
+            let produced = compute(lod, terrain, state, camera, allowance).await?;
             f.incomplete = !produced.complete;
-            f.tokens -= body.len() as f64;
+            f.tokens -= produced.body.len() as f64;
             f.sent += 1;
             let msg = ServerMsg::Delta(SessionDelta {
                 pose_seq,
                 complete: produced.complete,
                 delta: WireDelta {
-                    seq: produced.delta.seq,
-                    digest: produced.delta.digest,
-                    body,
+                    seq: produced.seq,
+                    digest: produced.digest,
+                    body: produced.body,
                 },
             });
             send(socket, state, stats, &msg).await?;
@@ -160,24 +159,21 @@ async fn compute(
     state: &AppState,
     camera: Camera,
     allowance: usize,
-) -> Result<(Produced, Vec<u8>), (CloseReason, String)> {
+) -> Result<Produced, (CloseReason, String)> {
     let t = terrain.clone();
     // The state moves to a blocking thread and back; a placeholder holds its place.
     let mut owned = std::mem::replace(lod, LodStream::placeholder());
     let joined = tokio::task::spawn_blocking(move || {
         let started = Instant::now();
-        let engine = VertexEngine::new(&t.store);
-        let produced = owned.update(&engine, &camera, allowance);
-        let g = engine.geometry();
-        let body = produced.delta.pack_body(&g.shape, g.z_quantum);
-        (owned, produced, body, started.elapsed().as_secs_f64())
+        let produced = owned.update(&t.store, &camera, allowance);
+        (owned, produced, started.elapsed().as_secs_f64())
     })
     .await;
     match joined {
-        Ok((back, produced, body, secs)) => {
+        Ok((back, produced, secs)) => {
             *lod = back;
             state.metrics.observe_update(secs);
-            Ok((produced, body))
+            Ok(produced)
         }
         Err(e) => fail(CloseReason::Internal, format!("update failed: {e}")),
     }

@@ -24,6 +24,8 @@ use super::limits::SessionPermit;
 use super::state::{AppState, SessionStats, Terrain};
 use super::stream::Stream as LodStream;
 use super::validate;
+use crate::lod::tile::TileEngine;
+use crate::lod::tile::session::TileSession;
 use crate::lod::vertex::{LodParams, VertexEngine};
 use axum::extract::ws::{CloseFrame, Message};
 use flow::stream_loop;
@@ -87,7 +89,6 @@ async fn open(
             ),
         );
     }
-    let StreamKind::Vertex = hello.kind;
     validate::params(&hello.lens, hello.tau, hello.budget)
         .map_err(|e| (CloseReason::BadParams, e))?;
     if let Some(r) = &hello.resume
@@ -111,6 +112,20 @@ async fn open(
     let lens = hello.lens.into();
     let budget = hello.budget;
     let built = tokio::task::spawn_blocking(move || {
+        if let StreamKind::Tiles(tp) = hello.kind {
+            let engine = TileEngine::new(&t.store);
+            let session = match &hello.resume {
+                Some(r) => {
+                    let shape = engine.shape();
+                    let active =
+                        relief_proto::tile::snapshot::active_of(shape, &r.snapshot, max_nodes)
+                            .map_err(|e| e.to_string())?;
+                    TileSession::resume(&engine, tp, params.tau, params.merge_ratio, &active)?
+                }
+                None => TileSession::new(tp, params.tau, params.merge_ratio),
+            };
+            return Ok(LodStream::tiles(session, lens));
+        }
         let engine = VertexEngine::new(&t.store);
         let shape = &engine.geometry().shape;
         let cut = match &hello.resume {
@@ -155,6 +170,7 @@ where
         Some(ClientMsg::Hello(h)) => h,
         Some(_) => return fail(CloseReason::Protocol, "the first message must be a hello"),
     };
+    let tiles = matches!(hello.kind, StreamKind::Tiles(_));
     let (Opening { mut lod, budget }, resumed) = open(hello, &terrain, state).await?;
     state.metrics.sessions_total.fetch_add(1, Relaxed);
     if resumed {
@@ -169,6 +185,7 @@ where
         max_in_flight: state.limits.max_in_flight,
         max_message_bytes: state.limits.max_message_bytes,
         idle_timeout_ms: state.limits.idle_timeout.as_millis().min(u32::MAX as u128) as u32,
+        tiles: tiles.then(|| terrain.store.tile_info().clone()),
     });
     send(socket, state, stats, &welcome).await?;
     state.metrics.sessions_active.fetch_add(1, Relaxed);

@@ -22,7 +22,7 @@
 //! interior set, whose value per node is its packed due key and band, and the wheels' entries;
 //! all proportional to the number of interior nodes (about a third of the active ones).
 
-use super::vertex::{LodParams, UpdateStats, VertexEngine};
+use super::{LodParams, UpdateStats, VertexEngine};
 use glam::Vec3;
 use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;

@@ -1,6 +1,12 @@
 //! The vertex-stream LOD engine (paper 000, sections 3.3-3.4): screen errors, the initial cut
 //! and the coherent top-down update that yields deltas. Pure: no I/O, no async.
 //!
+//! - [`session`]: one session's cut with event-driven updates that re-examine only the nodes
+//!   whose decision can have changed.
+//! - [`budget`]: the bandwidth-budgeted update: merges, then the splits that remove the most
+//!   screen error per byte, up to a byte budget (DESIGN.md section 6).
+//! - [`diff`]: the delta between two arbitrary cuts, for the stateless HTTP one-shot.
+//!
 //! **Initial cut.** The paper's bottom-up pass visits every node of the tree. Because static
 //! errors are saturated and the screen-error bound is monotone (a parent's box holds its
 //! children's), the nodes it marks as null-subtree roots are exactly those whose screen error is
@@ -19,6 +25,12 @@
 //! fuji_srtm3 at tau = 1. So new children are examined in the same pass and refinement goes as
 //! deep as the pose needs; coarsening still moves one level per update, which costs triangles
 //! for a few updates but never accuracy.
+
+pub mod budget;
+pub mod diff;
+pub mod session;
+#[cfg(test)]
+pub(crate) mod tests;
 
 use crate::store::Store;
 use crate::store::build::split_details;

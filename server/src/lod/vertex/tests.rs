@@ -2,7 +2,7 @@
 //! the digest catches dropped and reordered deltas, the top-down initial cut equals the paper's
 //! bottom-up pass, and a camera at rest yields empty deltas.
 
-use super::vertex::{LodParams, UpdateStats, VertexEngine};
+use super::{LodParams, UpdateStats, VertexEngine};
 use crate::store::{Store, StoreInput, StoreMeta, write_store};
 use glam::Vec3;
 use proptest::prelude::*;
@@ -38,6 +38,7 @@ pub(crate) fn store(dir: &std::path::Path, w: u32, h: u32, seed: u64) -> Store {
         z_quantum: 0.1,
         heights: &heights,
         voids: &voids,
+        tile_size: 8,
         meta: StoreMeta::default(),
     };
     write_store(&path, &input, |_| {}).unwrap();

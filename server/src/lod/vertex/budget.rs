@@ -28,7 +28,7 @@
 //! repeated calls for the same view reach the same cut: the deferred splits are all over tau and
 //! never touch a merge's decision. Pure: no I/O, no async.
 
-use super::vertex::{LodParams, VertexEngine};
+use super::{LodParams, VertexEngine};
 use relief_proto::bits::{best_order, eg_len, zigzag};
 use relief_proto::cut::Cut;
 use relief_proto::delta::{Delta, Split, predicted_code};
@@ -245,8 +245,8 @@ pub fn budgeted_update(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lod::tests::{camera, lens, pose, store};
     use crate::lod::vertex::UpdateStats;
+    use crate::lod::vertex::tests::{camera, lens, pose, store};
     use crate::store::Store;
     use proptest::prelude::*;
     use relief_proto::mirror::Mirror;

@@ -13,7 +13,7 @@
 //!
 //! Pure: no I/O, no async. The cost is proportional to the two cuts' interior counts.
 
-use super::vertex::VertexEngine;
+use super::VertexEngine;
 use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;
 
@@ -61,7 +61,7 @@ pub(super) mod tests {
     use relief_proto::tree::NodeId;
     use relief_proto::view::ViewState;
 
-    use crate::lod::tests::{Pose, camera, lens, pose, store};
+    use crate::lod::vertex::tests::{Pose, camera, lens, pose, store};
 
     fn sorted_active(cut: &Cut, s: &Store) -> Vec<NodeId> {
         let mut v = cut.active_nodes(&s.geometry().shape);
