@@ -113,8 +113,8 @@ pub async fn fly(opts: &FlyOptions) -> Result<FlyReport, FlyError> {
         latency_ms_p99_after_first: quantile(&later, 0.99),
         desyncs: c.desyncs,
         reconnects: c.reconnects,
-        triangles_final: session.mesh().triangle_count(),
-        active_final: session.mirror().cut().active_count(),
+        triangles_final: session.triangle_count(),
+        active_final: session.active_count(),
         server_update_ms_mean: if updates > 0.0 {
             (after.0 - before.0) * 1e3 / updates
         } else {

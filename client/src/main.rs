@@ -10,6 +10,7 @@ use relief_client::render::bench::{self, RenderBenchOptions};
 use relief_client::render::shot::{self, ShotOptions, ShotPose};
 use relief_client::session::SessionConfig;
 use relief_client::viewer::{self, ViewerOptions};
+use relief_proto::msg::{CrackMode, StreamKind, TileStreamParams};
 use relief_proto::path::PathKind;
 use relief_proto::view::Lens;
 use std::path::PathBuf;
@@ -26,7 +27,42 @@ struct Cli {
     command: Command,
 }
 
-/// The server and the error threshold: what every command that opens a session names.
+/// Which stream a session asks for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum StreamArg {
+    /// The vertex stream (paper 000): splits and merges, fans, geomorphs.
+    Vertex,
+    /// The tile stream (paper 001): tiles with crack patches or skirts.
+    Tiles,
+}
+
+/// How a tile session closes cracks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum CrackArg {
+    /// Precomputed crack patches, dropped and raised, sent with the tiles.
+    Patches,
+    /// Skirts hung from every tile edge, 5x the level's largest error deep (Cesium's rule).
+    Skirts,
+    /// Nothing (cracks show).
+    None,
+    /// Diagnostic: patches are sent, but only the dropped ones are drawn (paper 001's rule).
+    Dropped,
+}
+
+/// Tiles a tile session caches by default, active ones included.
+const DEFAULT_CACHE_TILES: u32 = 512;
+
+/// Parses `--cache-tiles`: a number of tiles, or `unlimited`.
+fn parse_cache(s: &str) -> Result<u32, String> {
+    if s == "unlimited" {
+        return Ok(u32::MAX);
+    }
+    s.parse::<u32>()
+        .map_err(|_| format!("{s:?} is not a number of tiles or `unlimited`"))
+}
+
+/// The server, the stream and the error threshold: what every command that opens a session
+/// names.
 #[derive(clap::Args)]
 struct ServerArgs {
     /// The stream's URL.
@@ -39,6 +75,17 @@ struct ServerArgs {
     /// Screen-space error threshold in pixels.
     #[arg(long, default_value_t = 1.0)]
     tau: f32,
+    /// Which stream: `vertex` (splits and merges) or `tiles` (tiles with crack patches).
+    #[arg(long, value_enum, default_value = "vertex")]
+    stream: StreamArg,
+    /// Tile stream: how cracks are closed: `patches`, `skirts`, `none`, or `dropped` (patches
+    /// sent, only the dropped ones drawn: a diagnostic) [default: patches].
+    #[arg(long, value_enum)]
+    crack: Option<CrackArg>,
+    /// Tile stream: the most tiles the client keeps, active and cached together, or
+    /// `unlimited` [default: 512].
+    #[arg(long, value_parser = parse_cache)]
+    cache_tiles: Option<u32>,
 }
 
 impl ServerArgs {
@@ -47,10 +94,33 @@ impl ServerArgs {
             self.tau.is_finite() && self.tau > 0.0,
             "--tau must be a positive number of pixels"
         );
+        let stream = match self.stream {
+            StreamArg::Vertex => {
+                anyhow::ensure!(
+                    self.crack.is_none() && self.cache_tiles.is_none(),
+                    "--crack and --cache-tiles need --stream tiles"
+                );
+                StreamKind::Vertex
+            }
+            StreamArg::Tiles => StreamKind::Tiles(TileStreamParams {
+                cache_tiles: self.cache_tiles.unwrap_or(DEFAULT_CACHE_TILES),
+                crack: match self.crack.unwrap_or(CrackArg::Patches) {
+                    CrackArg::Patches | CrackArg::Dropped => CrackMode::Patches,
+                    CrackArg::Skirts => CrackMode::Skirts,
+                    CrackArg::None => CrackMode::None,
+                },
+            }),
+        };
         Ok(SessionConfig {
             tau: self.tau,
+            stream,
             ..SessionConfig::new(&self.server)
         })
+    }
+
+    /// Whether only the dropped crack patches are drawn.
+    fn dropped_only(&self) -> bool {
+        self.crack == Some(CrackArg::Dropped)
     }
 }
 
@@ -279,16 +349,18 @@ fn run() -> anyhow::Result<()> {
                 wireframe: view.wireframe,
                 background: shot::parse_colour(&background).map_err(anyhow::Error::msg)?,
                 morph: view.morph,
+                dropped_only: view.target.dropped_only(),
             };
             let (img, report) = rt.block_on(shot::shot(&opts))?;
             img.save(&out)
                 .with_context(|| format!("cannot write {}", out.display()))?;
             eprintln!(
-                "wrote {} ({}x{}, {} triangles, adapter {})",
+                "wrote {} ({}x{}, {} triangles, {} active, adapter {})",
                 out.display(),
                 report.size.0,
                 report.size.1,
                 report.triangles,
+                report.active,
                 report.adapter
             );
         }
@@ -303,6 +375,7 @@ fn run() -> anyhow::Result<()> {
                 path,
                 poses,
                 morph: view.morph,
+                dropped_only: view.target.dropped_only(),
             };
             let report = rt.block_on(bench::render_bench(&opts))?;
             print_json(&report, json)?;
@@ -322,6 +395,7 @@ fn run() -> anyhow::Result<()> {
                 wireframe: view.wireframe,
                 exit_after: exit_after.map(Duration::from_secs_f64),
                 morph: view.morph,
+                dropped_only: view.target.dropped_only(),
             };
             drop(rt);
             viewer::run(opts)?;
@@ -368,6 +442,7 @@ fn run() -> anyhow::Result<()> {
                 seed,
                 tau: session.tau,
                 budget: session.budget,
+                stream: session.stream,
                 rate_hz: stream.rate,
                 mesh,
                 progress: !quiet,

@@ -1,11 +1,13 @@
 //! A streaming session with a Relief server (protocol: `docs/protocol.md`).
 //!
-//! [`Session`] connects, says hello, sends poses, and applies each delta to a [`Mirror`] of the
-//! cut and to the [`FanMesh`] built from it. It checks every delta's digest and acknowledges it.
+//! [`Session`] connects, says hello, sends poses, and applies each delta: for the vertex stream
+//! to a [`Mirror`] of the cut and to the [`FanMesh`] built from it, for the tile stream to a
+//! [`TileMirror`](relief_proto::tile::mirror::TileMirror) of the held tiles (`session/stream.rs`; the rest of the flow is shared). It
+//! checks every delta's digest and acknowledges it.
 //! When the connection drops, or the server asks it to reconnect (a drain), it reconnects with
 //! exponential backoff and resumes from a snapshot of its own cut, then sends its latest pose
 //! again: the caller sees one continuous stream. A digest mismatch is counted as a desync and
-//! repaired by starting again from the root.
+//! repaired by starting again from scratch.
 //!
 //! Its configuration, errors, counters and link state are in `session/types.rs`.
 
@@ -17,7 +19,6 @@ use relief_proto::mirror::Mirror;
 use relief_proto::msg::{
     ClientMsg, Hello, PROTOCOL_VERSION, Resume, ServerMsg, StreamKind, TerrainInfo, WireCamera,
 };
-use relief_proto::snapshot::Snapshot;
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::view::{Camera, Lens};
 use std::time::{Duration, Instant};
@@ -26,13 +27,15 @@ use tokio_tungstenite::tungstenite::Message;
 use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
+mod stream;
 mod types;
 pub use relief_proto::mirror::Change;
+pub use stream::{StreamState, TileState, VertexState};
 pub use types::{Applied, ClientError, Counters, Link, SessionConfig};
 
 type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
-/// A live session: the connection, the mirror and its mesh.
+/// A live session: the connection and the mirrored state of its stream.
 pub struct Session {
     /// Where and how to connect.
     config: SessionConfig,
@@ -42,10 +45,8 @@ pub struct Session {
     info: TerrainInfo,
     /// Its geometry.
     geom: TerrainGeometry,
-    /// The mirrored cut with heights.
-    mirror: Mirror,
-    /// Triangles of the mirrored cut.
-    mesh: FanMesh,
+    /// The mirrored cut and its fans, or the held tiles.
+    stream: StreamState,
     /// The last pose sent and its sequence number, sent again after a reconnect.
     last_pose: Option<(u64, Camera)>,
     /// The next pose sequence number; grows across reconnects.
@@ -56,9 +57,7 @@ pub struct Session {
     idle_timeout: Duration,
     /// Counters.
     counters: Counters,
-    /// Changes applied since the last [`Session::take_changes`] (with `record_changes`).
-    changes: Vec<Change>,
-    /// Bumped whenever the mirror starts again from the root, so that a renderer rebuilds.
+    /// Bumped whenever the mirror starts again from scratch, so that a renderer rebuilds.
     generation: u64,
     /// Connected or not, shared.
     link: std::sync::Arc<Link>,
@@ -93,7 +92,7 @@ async fn handshake(config: &SessionConfig, resume: Option<Resume>) -> Result<Ope
     };
     let hello = ClientMsg::Hello(Hello {
         version: PROTOCOL_VERSION,
-        kind: StreamKind::Vertex,
+        kind: config.stream,
         lens: config.lens.into(),
         tau: config.tau,
         budget: config.budget,
@@ -147,15 +146,13 @@ impl Session {
         let geom = info
             .geometry()
             .map_err(|e| ClientError::Protocol(format!("bad terrain in welcome: {e}")))?;
-        let mirror = Mirror::new(&geom, info.root_z);
-        let mesh = FanMesh::new(&geom.shape, mirror.cut());
+        let stream = StreamState::fresh(&welcome, &geom, tile_params(&config))?;
         Ok(Session {
             config,
             ws: Some(ws),
             info,
             geom,
-            mirror,
-            mesh,
+            stream,
             last_pose: None,
             next_pose_seq: 1,
             max_in_flight: welcome.max_in_flight,
@@ -164,7 +161,6 @@ impl Session {
                 bytes_in: bytes as u64,
                 ..Counters::default()
             },
-            changes: Vec::new(),
             generation: 0,
             link,
         })
@@ -208,10 +204,14 @@ impl Session {
         self.ws = None;
         self.counters.reconnects += 1;
         self.link.set(Some("connection lost; reconnecting".into()));
-        let resume = (!fresh).then(|| Resume {
-            terrain_id: self.info.id,
-            snapshot: Snapshot::of(&self.geom.shape, self.mirror.cut()),
-        });
+        let resume = if fresh {
+            None
+        } else {
+            self.stream.snapshot(&self.geom).map(|snapshot| Resume {
+                terrain_id: self.info.id,
+                snapshot,
+            })
+        };
         let (ws, w, bytes) = match Self::establish(&self.config, resume, &self.link).await {
             // The server refused the snapshot (e.g. it now holds another terrain): start afresh.
             Err(ClientError::Closed { code, text }) if code == CloseReason::BadSnapshot.code() => {
@@ -220,19 +220,26 @@ impl Session {
             }
             r => r?,
         };
-        let same_terrain = w.terrain == self.info;
-        if w.resumed && same_terrain && w.digest == self.mirror.cut().digest() {
+        let same = w.terrain == self.info && self.stream.same_pyramid(&w);
+        let resumed = w.resumed && same && w.digest == self.stream.digest() && {
+            match self.stream.resumed() {
+                Ok(()) => true,
+                Err(e) => {
+                    tracing::warn!("cannot keep the resumed tiles ({e}); starting again");
+                    false
+                }
+            }
+        };
+        if resumed {
             self.counters.resumes += 1;
         } else {
-            // Start again from the root (after a desync, or on a server with another terrain).
+            // Start again from scratch (after a desync, or on a server with another terrain).
             self.info = w.terrain.clone();
             self.geom = self
                 .info
                 .geometry()
                 .map_err(|e| ClientError::Protocol(format!("bad terrain in welcome: {e}")))?;
-            self.mirror = Mirror::new(&self.geom, self.info.root_z);
-            self.mesh = FanMesh::new(&self.geom.shape, self.mirror.cut());
-            self.changes.clear();
+            self.stream = StreamState::fresh(&w, &self.geom, tile_params(&self.config))?;
             self.generation += 1;
         }
         self.counters.bytes_in += bytes as u64;
@@ -319,38 +326,34 @@ impl Session {
                 }
             };
             let started = Instant::now();
-            let delta = d
-                .delta
-                .unpack(&self.geom.shape, self.geom.z_quantum)
-                .map_err(|e| ClientError::Protocol(format!("bad delta: {e}")))?;
-            let shape = &self.geom.shape;
-            let mesh = &mut self.mesh;
-            let build = self.config.mesh;
-            let record = self.config.record_changes;
-            let changes = &mut self.changes;
-            let applied = self.mirror.apply(&self.geom, &delta, |c, change| {
-                if build {
-                    mesh.update_around(shape, c, change.node());
+            let applied = self.stream.apply(
+                &self.geom,
+                &d.delta,
+                self.config.mesh,
+                self.config.record_changes,
+            );
+            let applied = match applied {
+                Ok(a) => a,
+                Err(e) => {
+                    self.counters.desyncs += 1;
+                    tracing::warn!("desync after delta {} ({e}): starting again", d.delta.seq);
+                    self.reconnect(true).await?;
+                    continue;
                 }
-                if record {
-                    changes.push(change);
-                }
-            });
-            if applied.is_err() {
-                self.counters.desyncs += 1;
-                tracing::warn!("desync after delta {}: starting again", d.delta.seq);
-                self.reconnect(true).await?;
-                continue;
-            }
+            };
             let apply_us = started.elapsed().as_secs_f64() * 1e6;
             self.counters.deltas += 1;
+            self.counters.tiles_sent += applied.tiles_sent as u64;
+            self.counters.tiles_from_cache += applied.tiles_cached as u64;
             self.send(&ClientMsg::Ack { seq: d.delta.seq }).await;
             return Ok(Applied {
                 seq: d.delta.seq,
                 pose_seq: d.pose_seq,
                 complete: d.complete,
                 bytes,
-                changes: delta.merges.len() + delta.splits.len(),
+                changes: applied.changes,
+                tiles_sent: applied.tiles_sent,
+                tiles_cached: applied.tiles_cached,
                 apply_us,
             });
         }
@@ -411,25 +414,75 @@ impl Session {
         &self.geom
     }
 
+    /// The stream's mirrored state.
+    pub fn stream(&self) -> &StreamState {
+        &self.stream
+    }
+
+    /// The tile stream's state (`None` for a vertex session).
+    pub fn tiles(&self) -> Option<&TileState> {
+        match &self.stream {
+            StreamState::Tiles(t) => Some(t),
+            StreamState::Vertex(_) => None,
+        }
+    }
+
+    /// Whether the session receives the tile stream.
+    pub fn is_tiles(&self) -> bool {
+        self.tiles().is_some()
+    }
+
+    /// Triangles drawn: the fans, or the active tiles with their patches or skirts.
+    pub fn triangle_count(&self) -> usize {
+        self.stream.triangle_count()
+    }
+
+    /// Active nodes of the cut, or active tiles.
+    pub fn active_count(&self) -> u64 {
+        self.stream.active_count()
+    }
+
+    fn vertex(&self) -> &VertexState {
+        match &self.stream {
+            StreamState::Vertex(v) => v,
+            StreamState::Tiles(_) => panic!("a tile session has no vertex mirror or fans"),
+        }
+    }
+
     /// The mirrored cut with heights.
+    ///
+    /// # Panics
+    /// On a tile session ([`Session::tiles`] holds its mirror).
     pub fn mirror(&self) -> &Mirror {
-        &self.mirror
+        &self.vertex().mirror
     }
 
     /// The mesh of the mirrored cut.
+    ///
+    /// # Panics
+    /// On a tile session.
     pub fn mesh(&self) -> &FanMesh {
-        &self.mesh
+        &self.vertex().mesh
     }
 
     /// The geometry, the mirror and the mesh at once, for renderers that follow the mesh's
     /// dirty cells while reading the mirror.
+    ///
+    /// # Panics
+    /// On a tile session.
     pub fn parts_mut(&mut self) -> (&TerrainGeometry, &Mirror, &mut FanMesh) {
-        (&self.geom, &self.mirror, &mut self.mesh)
+        match &mut self.stream {
+            StreamState::Vertex(v) => (&self.geom, &v.mirror, &mut v.mesh),
+            StreamState::Tiles(_) => panic!("a tile session has no vertex mirror or fans"),
+        }
     }
 
     /// Mutable mesh access, for renderers that take its dirty cells.
+    ///
+    /// # Panics
+    /// On a tile session.
     pub fn mesh_mut(&mut self) -> &mut FanMesh {
-        &mut self.mesh
+        self.parts_mut().2
     }
 
     /// The server's window of unacknowledged deltas.
@@ -438,12 +491,15 @@ impl Session {
     }
 
     /// The splits and merges applied since the last call, in order (empty unless the config
-    /// asks to record them).
+    /// asks to record them, and for tile sessions).
     pub fn take_changes(&mut self) -> Vec<Change> {
-        std::mem::take(&mut self.changes)
+        match &mut self.stream {
+            StreamState::Vertex(v) => std::mem::take(&mut v.changes),
+            StreamState::Tiles(_) => Vec::new(),
+        }
     }
 
-    /// How many times the mirror has started again from the root: when this moves, what
+    /// How many times the mirror has started again from scratch: when this moves, what
     /// [`Session::take_changes`] returned before no longer applies; rebuild from the mirror.
     pub fn generation(&self) -> u64 {
         self.generation
@@ -452,5 +508,13 @@ impl Session {
     /// Counters over the session's life.
     pub fn counters(&self) -> Counters {
         self.counters
+    }
+}
+
+/// The tile stream's parameters, for a tile session's config.
+fn tile_params(config: &SessionConfig) -> Option<relief_proto::msg::TileStreamParams> {
+    match config.stream {
+        StreamKind::Vertex => None,
+        StreamKind::Tiles(p) => Some(p),
     }
 }

@@ -18,6 +18,7 @@ async fn fifty_sessions_for_ten_seconds_report_consistent_figures() {
         seed: 7,
         tau: 1.0,
         budget: None,
+        stream: relief_proto::msg::StreamKind::Vertex,
         rate_hz: 10.0,
         mesh: true,
         progress: false,

@@ -2,7 +2,7 @@
 //! engineer who load-tests LOD update bandwidth.
 //!
 //! Each virtual client is a [`Session`] (mirror, digest check, acknowledgements; fans too with
-//! `mesh`) flying its own path: the standard or stress loop phase-shifted by its index, or a
+//! `mesh`; or, for the tile stream, the tile mirror with its digest check) flying its own path: the standard or stress loop phase-shifted by its index, or a
 //! seeded random loop. Sessions start spread over the ramp, fly until the stage ends, and stop
 //! by themselves. Meanwhile a sampler scrapes the server's `/metrics` once a second for its CPU
 //! time, resident memory, sessions and updates.
@@ -69,6 +69,9 @@ pub struct LoadOptions {
     pub tau: f32,
     /// Per-session bandwidth budget, bytes per second.
     pub budget: Option<u32>,
+    /// The stream every session asks for (tile sessions apply every tile delta to their tile
+    /// mirror and check its digest; they build no triangles).
+    pub stream: relief_proto::msg::StreamKind,
     /// Poses per second per session (0: each as soon as the previous is answered).
     pub rate_hz: f64,
     /// Rebuild fans as a viewer would.
@@ -266,6 +269,7 @@ pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
         let mut config = SessionConfig::new(&opts.url);
         config.tau = opts.tau;
         config.budget = opts.budget;
+        config.stream = opts.stream;
         config.mesh = opts.mesh;
         let cams = paths[i % paths.len()].clone();
         let phase = if paths.len() == 1 {

@@ -104,6 +104,12 @@ pub struct StageReport {
     pub rate_hz: f64,
     /// Whether fans were rebuilt.
     pub mesh: bool,
+    /// The stream: `vertex`, or `tiles` with its crack mode and cache limit.
+    pub stream: String,
+    /// Tiles received with their body, all sessions (tile stream).
+    pub tiles_sent: u64,
+    /// Tiles activated from the sessions' caches (tile stream).
+    pub tiles_from_cache: u64,
     /// Seconds of the measured window (after the ramp).
     pub steady_s: f64,
     /// Sessions that flew to the end.
@@ -142,6 +148,21 @@ pub struct StageReport {
     pub latency_cdf: Vec<(f64, f64)>,
 }
 
+/// The stream in words: `vertex`, or e.g. `tiles (patches, cache 512)`.
+fn stream_name(s: relief_proto::msg::StreamKind) -> String {
+    match s {
+        relief_proto::msg::StreamKind::Vertex => "vertex".into(),
+        relief_proto::msg::StreamKind::Tiles(p) => {
+            let cache = if p.cache_tiles == u32::MAX {
+                "unlimited".to_string()
+            } else {
+                p.cache_tiles.to_string()
+            };
+            format!("tiles ({:?}, cache {cache})", p.crack).to_lowercase()
+        }
+    }
+}
+
 /// Builds the report of a stage whose measured window starts `ramp_s` after its start.
 pub fn summarise(
     opts: &LoadOptions,
@@ -161,6 +182,7 @@ pub fn summarise(
         budget: opts.budget,
         rate_hz: opts.rate_hz,
         mesh: opts.mesh,
+        stream: stream_name(opts.stream),
         ..StageReport::default()
     };
     let mut firsts = Vec::new();
@@ -173,6 +195,8 @@ pub fn summarise(
         r.desyncs += o.counters.desyncs;
         r.reconnects += o.counters.reconnects;
         r.deltas += o.counters.deltas;
+        r.tiles_sent += o.counters.tiles_sent;
+        r.tiles_from_cache += o.counters.tiles_from_cache;
         r.bytes_client += o.counters.bytes_in;
         r.poses += o.log.poses as u64;
         firsts.extend(o.log.first_latency_ms);
@@ -322,6 +346,7 @@ mod tests {
             seed: 1,
             tau: 1.0,
             budget: None,
+            stream: relief_proto::msg::StreamKind::Vertex,
             rate_hz: 10.0,
             mesh: false,
             progress: false,
@@ -345,6 +370,7 @@ mod tests {
                 desyncs: 0,
                 reconnects: 1,
                 resumes: 1,
+                ..Counters::default()
             },
             error: error.map(str::to_string),
             flown_s: 5.0,

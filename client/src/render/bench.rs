@@ -2,17 +2,17 @@
 //!
 //! One session flies the path in lock step (each pose answered before the next is sent). For
 //! every pose the client's work on the deltas that answer it is timed in three parts: decoding
-//! and applying them to the mirror and the fans (`apply`), bringing the node and cell records up
-//! to date (`scene`), and handing the changed pages to wgpu (`upload`). Then one frame is drawn
-//! offscreen (geomorph pass and terrain pass) and waited for: its time gives the frame rate at
-//! that cut. Figures are medians and 99th percentiles over the path's poses.
+//! and applying them to the mirror and the fans, or to the tile mirror (`apply`), bringing the
+//! node and cell records, or the new active tiles' triangles, up to date (`scene`), and handing
+//! the changed pages, or the new tiles' buffers, to wgpu (`upload`). Then one frame is drawn
+//! offscreen and waited for: its time gives the frame rate at that cut. Figures are medians and
+//! 99th percentiles over the path's poses.
 
-use super::follow::Follower;
 use super::frame::{FrameParams, MorphStage};
 use super::gpu::Gpu;
 use super::offscreen::{FORMAT, Offscreen};
-use super::renderer::Renderer;
 use super::shot::ShotError;
+use super::stream::{StreamRenderer, StreamScene};
 use crate::flight::{PathSpec, extent, quantile, server_path};
 use crate::session::{Session, SessionConfig};
 use relief_proto::path::{PATH_HZ, PathKind};
@@ -30,6 +30,8 @@ pub struct RenderBenchOptions {
     pub poses: usize,
     /// Where the geomorph is evaluated.
     pub morph: MorphStage,
+    /// Tile stream: draw the dropped crack patches alone (a diagnostic).
+    pub dropped_only: bool,
 }
 
 /// Median and 99th percentile of a series.
@@ -56,6 +58,8 @@ impl Spread {
 pub struct RenderBenchReport {
     /// The adapter.
     pub adapter: String,
+    /// `vertex` or `tiles`.
+    pub stream: &'static str,
     /// Frame width and height.
     pub size: (u32, u32),
     /// Poses flown.
@@ -78,6 +82,12 @@ pub struct RenderBenchReport {
     pub fps_median: f64,
     /// Triangles drawn (median and p99 over the poses).
     pub triangles: Spread,
+    /// Active nodes of the cut, or active tiles (median and p99 over the poses).
+    pub active: Spread,
+    /// Tiles received with their body (tile stream).
+    pub tiles_sent: u64,
+    /// Tiles activated from the client's cache (tile stream).
+    pub tiles_from_cache: u64,
 }
 
 /// Flies the path and measures.
@@ -97,11 +107,11 @@ pub async fn render_bench(opts: &RenderBenchOptions) -> Result<RenderBenchReport
     } else {
         opts.poses.min(cams.len())
     };
-    let mut follower = Follower::new(&mut session);
+    let mut scene = StreamScene::new(&mut session);
     let target = Offscreen::new(&gpu, lens.width, lens.height);
-    let mut renderer = Renderer::new(&gpu, FORMAT, &mut follower.scene);
-    let (mut apply, mut scene, mut upload, mut total) = (vec![], vec![], vec![], vec![]);
-    let (mut bytes, mut frame, mut tris) = (vec![], vec![], vec![]);
+    let mut renderer = StreamRenderer::new(&gpu, FORMAT, &mut scene);
+    let (mut apply, mut scene_t, mut upload, mut total) = (vec![], vec![], vec![], vec![]);
+    let (mut bytes, mut frame, mut tris, mut active) = (vec![], vec![], vec![], vec![]);
     let bar = indicatif::ProgressBar::new(count as u64);
     for (k, cam) in cams.iter().enumerate().take(count) {
         let now = k as f32 / PATH_HZ;
@@ -109,36 +119,47 @@ pub async fn render_bench(opts: &RenderBenchOptions) -> Result<RenderBenchReport
         let applied = session.wait_for_pose(seq).await?;
         let a: f64 = applied.iter().map(|a| a.apply_us).sum();
         let t = Instant::now();
-        follower.sync(&mut session, now);
+        scene.sync(&mut session, now);
         let s = t.elapsed().as_secs_f64() * 1e6;
         let t = Instant::now();
-        let b = renderer.upload(&gpu, &mut follower.scene);
+        let b = renderer.upload(&gpu, &mut scene);
         let u = t.elapsed().as_secs_f64() * 1e6;
         apply.push(a);
-        scene.push(s);
+        scene_t.push(s);
         upload.push(u);
         total.push(a + s + u);
         bytes.push(b as f64);
         let params = FrameParams {
             morph: opts.morph,
+            dropped_only: opts.dropped_only,
             ..FrameParams::offscreen(&session, *cam, lens, now + 1.0 / PATH_HZ)
         };
         let t = Instant::now();
         renderer.render(&gpu, &target.view, &params);
         gpu.wait();
         frame.push(t.elapsed().as_secs_f64() * 1e3);
-        tris.push(session.mesh().triangle_count() as f64);
+        tris.push(match &scene {
+            StreamScene::Tiles(t) => t.triangles(opts.dropped_only),
+            StreamScene::Vertex(_) => session.triangle_count(),
+        } as f64);
+        active.push(session.active_count() as f64);
         bar.inc(1);
     }
     bar.finish_and_clear();
     let frame_ms = Spread::of(frame);
+    let c = session.counters();
     let report = RenderBenchReport {
         adapter: gpu.describe(),
+        stream: if session.is_tiles() {
+            "tiles"
+        } else {
+            "vertex"
+        },
         size: (lens.width, lens.height),
         poses: count,
-        deltas: session.counters().deltas,
+        deltas: c.deltas,
         apply_us: Spread::of(apply),
-        scene_us: Spread::of(scene),
+        scene_us: Spread::of(scene_t),
         upload_us: Spread::of(upload),
         client_us: Spread::of(total),
         upload_bytes: Spread::of(bytes),
@@ -149,6 +170,9 @@ pub async fn render_bench(opts: &RenderBenchOptions) -> Result<RenderBenchReport
             0.0
         },
         triangles: Spread::of(tris),
+        active: Spread::of(active),
+        tiles_sent: c.tiles_sent,
+        tiles_from_cache: c.tiles_from_cache,
     };
     session.close().await;
     Ok(report)

@@ -47,11 +47,14 @@ pub struct FrameParams {
     pub fog_distance: f32,
     /// Where the geomorph is evaluated.
     pub morph: MorphStage,
+    /// Tile stream only: leave out the raised crack patches and draw the dropped ones alone
+    /// (paper 001's original rule), to see whether raised cracks show. A diagnostic.
+    pub dropped_only: bool,
 }
 
 impl FrameParams {
-    /// An offscreen frame of `session`'s terrain from `camera` through `lens` at `now`: the
-    /// session's tau with the default geomorph (in a compute pass), no wireframe, sRGB encoded
+    /// An offscreen frame of `session`'s terrain (either stream) from `camera` through `lens`
+    /// at `now`: the session's tau with the default geomorph (in a compute pass), no wireframe, sRGB encoded
     /// in the shader, the default sky, haze scaled to the terrain.
     pub fn offscreen(session: &Session, camera: Camera, lens: Lens, now: f32) -> FrameParams {
         FrameParams {
@@ -65,6 +68,7 @@ impl FrameParams {
             background: rgb8(SKY_RGB8),
             fog_distance: super::fog_distance(session.geometry()),
             morph: MorphStage::default(),
+            dropped_only: false,
         }
     }
 }

@@ -1,5 +1,5 @@
-//! The GPU side: buffers mirroring a [`Scene`]'s pools, the geomorph compute pass and the
-//! terrain render pass (shaders in `terrain.wgsl`).
+//! The GPU side of the vertex stream: buffers mirroring a [`Scene`]'s pools, the geomorph
+//! compute pass and the terrain render pass (shaders in `terrain.wgsl`, after `shade.wgsl`).
 //!
 //! Each frame is one render pass. The vertex shader pulls triangles' node slots from the cell
 //! records and geomorphs each vertex from its node's record and its ancestors' for this frame's
@@ -8,15 +8,13 @@
 //! compute pass runs the same geomorph function for every node slot and writes the positions
 //! out, for tests that read back what is drawn ([`Renderer::morph_only`]).
 
-use super::frame::{FRAME_BYTES, FrameParams, MorphStage, frame_block};
+use super::frame::{FrameParams, MorphStage, frame_block};
 use super::gpu::{Gpu, RenderError};
 use super::offscreen::read_buffer;
+use super::pass::{self, Depth};
 use super::scene::{CELL_WORDS, Pool, Scene};
 use glam::Vec3;
 use wgpu::util::DeviceExt;
-
-/// Depth buffer format (reversed Z: near is 1, infinity 0).
-const DEPTH: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 /// GPU buffers, pipelines and bind groups for one scene.
 pub struct Renderer {
@@ -45,8 +43,8 @@ pub struct Renderer {
     /// Node slots the geomorph pass covers, and cell slots the draw covers: the pools' high
     /// water marks, not their capacities.
     used: (usize, usize),
-    /// Depth buffer and its size.
-    depth: Option<(wgpu::TextureView, (u32, u32))>,
+    /// Depth buffer.
+    depth: Depth,
 }
 
 /// One pool's GPU buffer.
@@ -107,7 +105,7 @@ impl Renderer {
     /// Pipelines drawing into `format` targets, with buffers for `scene`.
     pub fn new(gpu: &Gpu, format: wgpu::TextureFormat, scene: &mut Scene) -> Renderer {
         let dev = &gpu.device;
-        let module = dev.create_shader_module(wgpu::include_wgsl!("terrain.wgsl"));
+        let module = pass::shader(gpu, "relief terrain", include_str!("terrain.wgsl"));
         let cv = wgpu::ShaderStages::COMPUTE | wgpu::ShaderStages::VERTEX_FRAGMENT;
         let layout_common = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("relief common"),
@@ -178,35 +176,20 @@ impl Renderer {
                     cull_mode: None,
                     ..Default::default()
                 },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Greater),
-                    stencil: Default::default(),
-                    bias: Default::default(),
-                }),
+                depth_stencil: Some(pass::depth_state()),
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: &module,
                     entry_point: Some("fs"),
                     compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
+                    targets: &pass::colour_target(format),
                 }),
                 multiview_mask: None,
                 cache: None,
             })
         };
         let (draw, draw_pre) = (pipeline("vs"), pipeline("vs_pre"));
-        let frame = dev.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("relief frame"),
-            size: FRAME_BYTES as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let frame = pass::frame_buffer(gpu);
         let nodes = GpuPool::new(gpu, &scene.nodes, "relief nodes");
         let cells = GpuPool::new(gpu, &scene.cells, "relief cells");
         let _ = scene.nodes.take_dirty();
@@ -225,7 +208,7 @@ impl Renderer {
             draw,
             draw_pre,
             used: (scene.nodes.high_water(), scene.cells.high_water()),
-            depth: None,
+            depth: Depth::default(),
         }
     }
 
@@ -301,24 +284,6 @@ impl Renderer {
 
     /// Draws the scene into `target` (of the lens's size).
     pub fn render(&mut self, gpu: &Gpu, target: &wgpu::TextureView, f: &FrameParams) {
-        let size = (f.lens.width.max(1), f.lens.height.max(1));
-        if self.depth.as_ref().is_none_or(|d| d.1 != size) {
-            let tex = gpu.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("relief depth"),
-                size: wgpu::Extent3d {
-                    width: size.0,
-                    height: size.1,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: DEPTH,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-                view_formats: &[],
-            });
-            self.depth = Some((tex.create_view(&Default::default()), size));
-        }
         gpu.queue
             .write_buffer(&self.frame, 0, bytemuck::cast_slice(&frame_block(f)));
         let mut enc = gpu.device.create_command_encoder(&Default::default());
@@ -331,32 +296,9 @@ impl Renderer {
         };
         let vertices = (self.used.1 * CELL_WORDS) as u32;
         let groups = self.groups(gpu).clone();
-        let depth = &self.depth.as_ref().expect("made above").0;
+        let depth = self.depth.view(gpu, (f.lens.width, f.lens.height));
         {
-            let [r, g, b] = f.background;
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("relief terrain"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: target,
-                    depth_slice: None,
-                    resolve_target: None,
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
-                        store: wgpu::StoreOp::Store,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(0.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = pass::begin(&mut enc, target, depth, f.background);
             pass.set_pipeline(&draw);
             pass.set_bind_group(0, &groups[0], &[]);
             pass.set_bind_group(2, &groups[2], &[]);

@@ -1,5 +1,5 @@
-//! `relief-client shot`: stream the cut for one camera (or a path up to one frame) and draw it
-//! offscreen into a PNG. Works on Mesa's software Vulkan, with no window.
+//! `relief-client shot`: stream the cut (or the tiles) for one camera (or a path up to one
+//! frame) and draw it offscreen into a PNG. Works on Mesa's software Vulkan, with no window.
 //!
 //! With `--path K --frame N` the session flies the path's poses 0..=N in lock step, as a viewer
 //! at the path's rate would receive them, each split stamped with its pose's time; the frame is
@@ -7,11 +7,10 @@
 //! would be on screen. With `--camera`, one pose is streamed and drawn after every geomorph has
 //! settled.
 
-use super::follow::Follower;
 use super::frame::{FrameParams, MorphStage, rgb8};
 use super::gpu::{Gpu, RenderError};
 use super::offscreen::Offscreen;
-use super::renderer::Renderer;
+use super::stream::{StreamRenderer, StreamScene};
 use crate::flight::{PathSpec, extent, server_path};
 use crate::http::HttpError;
 use crate::session::{ClientError, Session, SessionConfig};
@@ -45,6 +44,8 @@ pub struct ShotOptions {
     pub background: [u8; 3],
     /// Where the geomorph is evaluated.
     pub morph: MorphStage,
+    /// Tile stream: draw the dropped crack patches alone (a diagnostic).
+    pub dropped_only: bool,
 }
 
 /// What a shot drew.
@@ -56,6 +57,8 @@ pub struct ShotReport {
     pub size: (u32, u32),
     /// Triangles drawn.
     pub triangles: usize,
+    /// Active nodes of the cut, or active tiles.
+    pub active: u64,
     /// Deltas received.
     pub deltas: u64,
     /// Bytes received.
@@ -86,21 +89,21 @@ pub enum ShotError {
 
 /// A session streamed to a camera, its scene, and the clock its splits were stamped with.
 pub struct Streamed {
-    /// The session, with its mirror and mesh.
+    /// The session, with its mirror and mesh (or tiles).
     pub session: Session,
-    /// Its records.
-    pub follower: Follower,
+    /// Its records or tiles.
+    pub scene: StreamScene,
     /// When the frame should be drawn, seconds on the scene's clock.
     pub now: f32,
     /// The camera to draw from.
     pub camera: Camera,
 }
 
-/// Connects and streams the cut for `pose`.
+/// Connects and streams the cut (or tiles) for `pose`.
 pub async fn stream_to(config: SessionConfig, pose: ShotPose) -> Result<Streamed, ShotError> {
     let config = super::renderer_config(config);
     let mut session = Session::connect(config).await?;
-    let mut follower = Follower::new(&mut session);
+    let mut scene = StreamScene::new(&mut session);
     let (cams, last) = match pose {
         ShotPose::Camera(c) => (vec![c], 0),
         ShotPose::Path { kind, frame } => {
@@ -119,7 +122,7 @@ pub async fn stream_to(config: SessionConfig, pose: ShotPose) -> Result<Streamed
     for (k, cam) in cams.iter().enumerate().take(last + 1) {
         let seq = session.send_pose(*cam).await?;
         session.wait_for_pose(seq).await?;
-        follower.sync(&mut session, k as f32 / PATH_HZ);
+        scene.sync(&mut session, k as f32 / PATH_HZ);
     }
     let now = match pose {
         ShotPose::Camera(_) => 1.0e3,
@@ -127,7 +130,7 @@ pub async fn stream_to(config: SessionConfig, pose: ShotPose) -> Result<Streamed
     };
     Ok(Streamed {
         session,
-        follower,
+        scene,
         now,
         camera: cams[last],
     })
@@ -149,7 +152,7 @@ pub fn draw(
     params: &FrameParams,
 ) -> Result<image::RgbaImage, RenderError> {
     let target = Offscreen::new(gpu, params.lens.width, params.lens.height);
-    let mut renderer = Renderer::new(gpu, super::offscreen::FORMAT, &mut s.follower.scene);
+    let mut renderer = StreamRenderer::new(gpu, super::offscreen::FORMAT, &mut s.scene);
     renderer.render(gpu, &target.view, params);
     target.read(gpu)
 }
@@ -161,6 +164,7 @@ pub async fn shot(opts: &ShotOptions) -> Result<(image::RgbaImage, ShotReport), 
     let mut s = stream_to(opts.session.clone(), opts.pose).await?;
     let params = FrameParams {
         morph: opts.morph,
+        dropped_only: opts.dropped_only,
         ..frame_params(&s, lens, opts.wireframe, opts.background)
     };
     let img = draw(&gpu, &mut s, &params)?;
@@ -168,7 +172,11 @@ pub async fn shot(opts: &ShotOptions) -> Result<(image::RgbaImage, ShotReport), 
     let report = ShotReport {
         adapter: gpu.describe(),
         size: (lens.width, lens.height),
-        triangles: s.session.mesh().triangle_count(),
+        triangles: match &s.scene {
+            StreamScene::Tiles(t) => t.triangles(opts.dropped_only),
+            StreamScene::Vertex(_) => s.session.triangle_count(),
+        },
+        active: s.session.active_count(),
         deltas: c.deltas,
         bytes: c.bytes_in,
     };

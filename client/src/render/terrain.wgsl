@@ -1,27 +1,9 @@
-// Relief's terrain shaders: vertex pulling with the geomorph (vertex), shading (fragment), and
-// the same geomorph written out for tests (compute). The records are written by `scene.rs`; the morph is the formula of
+// Relief's vertex-stream shaders: vertex pulling with the geomorph (vertex) and the same
+// geomorph written out for tests (compute); `shade.wgsl` (prepended) has the frame block and the
+// shading. The records are written by `scene.rs`; the morph is the formula of
 // `relief_proto::mesh::morph`, which is its reference (paper 000, section 3.6).
 
 const NONE: u32 = 0xffffffffu;
-
-struct Frame {
-    // Projection times view, for positions relative to the eye.
-    view_proj: mat4x4<f32>,
-    // xyz: eye, world metres; w: now, seconds on the renderer's clock.
-    eye: vec4<f32>,
-    // xyz: unit view direction; w: focal length, pixels.
-    forward: vec4<f32>,
-    // Inward normals of the four side planes and the near plane; w: the plane's offset.
-    planes: array<vec4<f32>, 5>,
-    // tau (px), lambda, growth duration (s, 0: none), off-axis bound.
-    morph: vec4<f32>,
-    // near (m), lowest height, highest height (the colour ramp), wireframe (0 or 1).
-    misc: vec4<f32>,
-    // xyz: unit direction towards the sun; w: 1 to encode sRGB in the shader.
-    light: vec4<f32>,
-    // rgb: haze colour (linear); w: fog distance, metres.
-    haze: vec4<f32>,
-};
 
 struct Node {
     // Position at rest, world metres.
@@ -37,7 +19,6 @@ struct Node {
     t_split: f32,
 };
 
-@group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> nodes: array<Node>;
 @group(1) @binding(0) var<storage, read_write> drawn_out: array<vec4<f32>>;
 @group(2) @binding(0) var<storage, read> cells: array<u32>;
@@ -112,16 +93,6 @@ fn morph(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
     drawn_out[i] = vec4<f32>(drawn_position(i), 1.0);
 }
 
-struct VOut {
-    @builtin(position) clip: vec4<f32>,
-    // Position relative to the eye, metres.
-    @location(0) rel: vec3<f32>,
-    // Barycentric corner, for the wireframe.
-    @location(1) bary: vec3<f32>,
-    // Height, metres, for the colour ramp.
-    @location(2) height: f32,
-};
-
 // Vertex pulling: the vertex index walks the cell records, three slots a triangle.
 fn pulled(vi: u32, morph_here: bool) -> VOut {
     var o: VOut;
@@ -158,45 +129,4 @@ fn vs(@builtin(vertex_index) vi: u32) -> VOut {
 @vertex
 fn vs_pre(@builtin(vertex_index) vi: u32) -> VOut {
     return pulled(vi, false);
-}
-
-// Height colour ramp: lowland green, upland olive, brown, grey rock, snow.
-fn ramp(t: f32) -> vec3<f32> {
-    let c0 = vec3<f32>(0.16, 0.30, 0.10);
-    let c1 = vec3<f32>(0.42, 0.45, 0.20);
-    let c2 = vec3<f32>(0.45, 0.33, 0.20);
-    let c3 = vec3<f32>(0.50, 0.48, 0.46);
-    let c4 = vec3<f32>(0.95, 0.95, 0.97);
-    if (t < 0.25) {
-        return mix(c0, c1, t / 0.25);
-    } else if (t < 0.5) {
-        return mix(c1, c2, (t - 0.25) / 0.25);
-    } else if (t < 0.8) {
-        return mix(c2, c3, (t - 0.5) / 0.3);
-    }
-    return mix(c3, c4, (t - 0.8) / 0.2);
-}
-
-@fragment
-fn fs(in: VOut) -> @location(0) vec4<f32> {
-    // Flat normal of the drawn (morphed) triangle.
-    var n = normalize(cross(dpdx(in.rel), dpdy(in.rel)));
-    if (n.z < 0.0) {
-        n = -n;
-    }
-    let span = max(frame.misc.z - frame.misc.y, 1.0);
-    let base = ramp(clamp((in.height - frame.misc.y) / span, 0.0, 1.0));
-    let lambert = max(dot(n, frame.light.xyz), 0.0);
-    var c = base * (0.30 + 0.95 * lambert);
-    let fog = 1.0 - exp(-length(in.rel) / frame.haze.w);
-    c = mix(c, frame.haze.rgb, 0.45 * fog);
-    if (frame.misc.w > 0.5) {
-        let d = in.bary / max(fwidth(in.bary), vec3<f32>(1.0e-6));
-        let edge = min(min(d.x, d.y), d.z);
-        c = mix(vec3<f32>(0.05, 0.05, 0.07), c, smoothstep(0.0, 1.0, edge));
-    }
-    if (frame.light.w > 0.5) {
-        c = pow(c, vec3<f32>(1.0 / 2.2));
-    }
-    return vec4<f32>(c, 1.0);
 }

@@ -1,6 +1,7 @@
 //! What a session is configured with and reports: its configuration, errors, per-delta and
 //! lifetime counters, and its shared link state.
 
+use relief_proto::msg::StreamKind;
 use relief_proto::view::Lens;
 use std::time::Duration;
 
@@ -15,6 +16,9 @@ pub struct SessionConfig {
     pub tau: f32,
     /// Bandwidth budget, bytes per second; `None` for unlimited.
     pub budget: Option<u32>,
+    /// Which stream the hello asks for: the vertex stream, or tiles with a cache limit and a
+    /// crack mode.
+    pub stream: StreamKind,
     /// First wait before reconnecting; doubles on each failed attempt.
     pub backoff_initial: Duration,
     /// Longest wait between attempts.
@@ -22,7 +26,7 @@ pub struct SessionConfig {
     /// Give up after this long without a connection.
     pub reconnect_deadline: Duration,
     /// Keep the fan mesh up to date (a viewer needs it; a load generator may skip it, and
-    /// [`Session::mesh`] then stays at the root's).
+    /// [`Session::mesh`] then stays at the root's). Tile sessions have no fans.
     pub mesh: bool,
     /// Record every split and merge for [`Session::take_changes`] (a renderer mirrors them into
     /// GPU buffers; nobody else should pay for the list).
@@ -30,13 +34,15 @@ pub struct SessionConfig {
 }
 
 impl SessionConfig {
-    /// Defaults for `url`: the standard lens, tau 1, no budget, backoff 50 ms to 2 s, 30 s deadline.
+    /// Defaults for `url`: the vertex stream, the standard lens, tau 1, no budget, backoff 50 ms
+    /// to 2 s, 30 s deadline.
     pub fn new(url: &str) -> SessionConfig {
         SessionConfig {
             url: url.to_string(),
             lens: Lens::STANDARD,
             tau: 1.0,
             budget: None,
+            stream: StreamKind::Vertex,
             backoff_initial: Duration::from_millis(50),
             backoff_max: Duration::from_secs(2),
             reconnect_deadline: Duration::from_secs(30),
@@ -81,10 +87,14 @@ pub struct Applied {
     pub complete: bool,
     /// Bytes of the message.
     pub bytes: usize,
-    /// Merges and splits applied.
+    /// Merges and splits applied, or tiles removed and added.
     pub changes: usize,
-    /// Time spent decoding the delta, applying it to the mirror and updating the fans,
-    /// microseconds (not waiting for it).
+    /// Tiles added with their body (tile stream).
+    pub tiles_sent: usize,
+    /// Tiles added from the client's cache, without a body (tile stream).
+    pub tiles_cached: usize,
+    /// Time spent decoding the delta, applying it to the mirror and updating the fans (or
+    /// decoding the tiles), microseconds (not waiting for it).
     pub apply_us: f64,
 }
 
@@ -102,6 +112,10 @@ pub struct Counters {
     pub reconnects: u64,
     /// Reconnections the server resumed from the snapshot.
     pub resumes: u64,
+    /// Tiles received with their body (tile stream).
+    pub tiles_sent: u64,
+    /// Tiles activated from the client's cache (tile stream).
+    pub tiles_from_cache: u64,
 }
 
 /// Whether a session is connected, readable from other threads while the session itself is

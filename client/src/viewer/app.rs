@@ -5,7 +5,7 @@
 use super::controls::{FlyCamera, Held};
 use super::net::{self, Shared};
 use super::{ViewerError, ViewerOptions};
-use crate::render::{FrameParams, Gpu, Renderer, fog_distance};
+use crate::render::{FrameParams, Gpu, StreamRenderer, fog_distance};
 use relief_proto::mesh::MorphRule;
 use relief_proto::view::Lens;
 use std::sync::Arc;
@@ -35,7 +35,7 @@ struct Surface {
     /// The device.
     gpu: Gpu,
     /// The renderer, made once the first scene exists.
-    renderer: Option<Renderer>,
+    renderer: Option<StreamRenderer>,
 }
 
 /// The application state.
@@ -216,12 +216,14 @@ impl App {
             height: s.config.height,
             ..self.opts.session.lens
         };
-        if let Some(f) = st.follower.as_mut() {
+        if let Some(scene) = st.scene.as_mut() {
             match s.renderer.as_mut() {
                 Some(r) => {
-                    r.upload(&s.gpu, &mut f.scene);
+                    r.upload(&s.gpu, scene);
                 }
-                None => s.renderer = Some(Renderer::new(&s.gpu, s.config.format, &mut f.scene)),
+                None => {
+                    s.renderer = Some(StreamRenderer::new(&s.gpu, s.config.format, scene));
+                }
             }
         }
         let title = format!(
@@ -263,6 +265,7 @@ impl App {
                     background: SKY,
                     fog_distance: geom_fog,
                     morph: self.opts.morph,
+                    dropped_only: self.opts.dropped_only,
                 };
                 r.render(&s.gpu, &view, &params);
             }

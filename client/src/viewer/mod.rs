@@ -29,6 +29,8 @@ pub struct ViewerOptions {
     pub exit_after: Option<Duration>,
     /// Where the geomorph is evaluated.
     pub morph: crate::render::MorphStage,
+    /// Tile stream: draw the dropped crack patches alone (a diagnostic).
+    pub dropped_only: bool,
 }
 
 /// Why the viewer could not run.

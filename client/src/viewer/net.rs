@@ -1,9 +1,10 @@
 //! The viewer's network thread: one session at a time, fed the window's latest camera at the
-//! pose rate, its deltas applied to the mirror, the fans and the shared scene. When the server
+//! pose rate, its deltas applied to the mirror, the fans (or the tile mirror) and the shared
+//! scene. When the server
 //! goes away past the session's own reconnect deadline, it says so in the status and tries
 //! again with growing waits; a change of tau starts a new session.
 
-use crate::render::Follower;
+use crate::render::StreamScene;
 use crate::session::{Session, SessionConfig};
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::view::{Camera, Lens};
@@ -41,7 +42,7 @@ pub struct Wanted {
 pub struct NetState {
     /// The scene of the current session (`None` before the first welcome). A new session or a
     /// rebuild after a desync makes a new scene, whose pools the renderer then sends whole.
-    pub follower: Option<Follower>,
+    pub scene: Option<StreamScene>,
     /// The terrain's geometry.
     pub geom: Option<TerrainGeometry>,
     /// The terrain's extent, metres, and highest height.
@@ -164,14 +165,14 @@ pub fn run(shared: Arc<Shared>, config: SessionConfig, rate_hz: f64) {
 /// Flies one session; returns `Ok` when it should be replaced (tau or size changed, or
 /// stopping).
 async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), String> {
-    let follower = Follower::new(&mut session);
+    let scene = StreamScene::new(&mut session);
     let geom = session.geometry().clone();
     let info = session.terrain().clone();
     let extent = crate::flight::extent(&info);
     let tau = session.tau();
     let size = (session.lens().width, session.lens().height);
     if let Ok(mut st) = shared.state.lock() {
-        st.follower = Some(follower);
+        st.scene = Some(scene);
         st.geom = Some(geom.clone());
         st.extent = Some((extent, info.height_range[1]));
         st.height_range = (info.height_range[0], info.height_range[1]);
@@ -231,10 +232,10 @@ async fn fly(shared: &Shared, mut session: Session, rate_hz: f64) -> Result<(), 
         let ground = last_sent.map(|c| ground_under(&session, c.eye.x, c.eye.y));
         let stamp = shared.now();
         if let Ok(mut st) = shared.state.lock() {
-            if let Some(f) = st.follower.as_mut() {
+            if let Some(f) = st.scene.as_mut() {
                 f.sync(&mut session, stamp);
             }
-            st.triangles = session.mesh().triangle_count();
+            st.triangles = session.triangle_count();
             st.bytes_per_s = bytes_in(&window);
             if latency.is_some() {
                 st.latency_ms = latency;
@@ -251,9 +252,13 @@ fn bytes_in(window: &[(Instant, usize)]) -> f64 {
     window.iter().map(|w| w.1 as u64).sum::<u64>() as f64
 }
 
-/// Height of the cut's active node over world `x`, `y`, metres (`None` off the terrain).
+/// Height of the cut's active node (or of the active tiles' surface) over world `x`, `y`,
+/// metres (`None` off the terrain).
 fn ground_under(session: &Session, x: f32, y: f32) -> Option<f32> {
     let geom = session.geometry();
+    if let Some(t) = session.tiles() {
+        return t.height_at(geom, x, y);
+    }
     let (c, r) = geom.frame.to_grid(x, y);
     let (w, h) = (geom.shape.width(), geom.shape.height());
     if !(c >= 0.0 && r >= 0.0 && c < w as f32 && r < h as f32) {

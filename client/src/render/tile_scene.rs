@@ -1,0 +1,190 @@
+//! The tile stream's scene, CPU side: each active tile's triangles in world metres (mesh, then
+//! dropped patches, raised patches and skirts, `relief_proto::tile::geometry`), kept in step
+//! with a session's [`TileMirror`](relief_proto::tile::mirror::TileMirror). The GPU side
+//! (`tiles.rs`) uploads a tile once when it first becomes active and keeps its buffers while the
+//! mirror holds it (active or cached), so only tiles new to the client cost an upload.
+
+use crate::session::{Session, TileState};
+use relief_proto::terrain::TerrainGeometry;
+use relief_proto::tile::geometry::tile_triangles;
+use relief_proto::tile::mirror::TileData;
+use rustc_hash::{FxHashMap, FxHashSet};
+use std::sync::Arc;
+
+/// One tile's triangles, ready to upload.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TileMesh {
+    /// Vertex positions, world metres, x y z after one another.
+    pub positions: Vec<f32>,
+    /// Vertex indices, three a triangle: the mesh, the dropped patches, the raised patches,
+    /// then the skirts.
+    pub indices: Vec<u32>,
+    /// Triangles of the mesh, dropped patches, raised patches and skirts, in that order.
+    pub counts: [u32; 4],
+}
+
+impl TileMesh {
+    /// The triangles of `tile`, with skirts `skirt` metres deep if given.
+    pub fn of(geom: &TerrainGeometry, tile: &TileData, skirt: Option<f32>) -> TileMesh {
+        let t = tile_triangles(&geom.frame, geom.z_quantum, tile, skirt);
+        let dropped = tile.patches.dropped.len();
+        let counts = [
+            t.mesh.len() as u32,
+            dropped as u32,
+            (t.patches.len() - dropped) as u32,
+            t.skirts.len() as u32,
+        ];
+        let indices = [&t.mesh, &t.patches, &t.skirts]
+            .into_iter()
+            .flat_map(|tris| tris.iter().flatten().copied())
+            .collect();
+        TileMesh {
+            positions: t.positions.iter().flatten().copied().collect(),
+            indices,
+            counts,
+        }
+    }
+
+    /// Triangles drawn: all of them, or without the raised patches (`dropped_only`).
+    pub fn drawn(&self, dropped_only: bool) -> u32 {
+        let [m, d, r, s] = self.counts;
+        if dropped_only {
+            m + d + s
+        } else {
+            m + d + r + s
+        }
+    }
+}
+
+/// The active tiles' triangles and what left the client since the GPU side last looked.
+#[derive(Default)]
+pub struct TileScene {
+    /// Bumped when the session starts again from scratch: GPU buffers of an older epoch go.
+    pub epoch: u64,
+    /// The session generation the scene belongs to.
+    generation: u64,
+    /// Active tiles, ascending dense index.
+    pub active: Vec<u32>,
+    /// Triangles of each active tile (built when the tile becomes active).
+    pub meshes: FxHashMap<u32, Arc<TileMesh>>,
+    /// Tiles whose meshes were handed out and that the mirror still holds.
+    known: FxHashSet<u32>,
+    /// Tiles the mirror no longer holds (evicted from its cache) since [`TileScene::take_gone`].
+    gone: Vec<u32>,
+}
+
+impl TileScene {
+    /// The scene of what `session` (a tile session) holds now.
+    pub fn new(session: &Session) -> TileScene {
+        let mut s = TileScene {
+            generation: session.generation(),
+            ..TileScene::default()
+        };
+        s.sync(session);
+        s
+    }
+
+    /// Follows `session`: builds the triangles of newly active tiles, drops those of tiles no
+    /// longer active, and notes the evicted ones. Returns the tiles built.
+    pub fn sync(&mut self, session: &Session) -> usize {
+        let Some(tiles) = session.tiles() else {
+            return 0;
+        };
+        if session.generation() != self.generation {
+            self.generation = session.generation();
+            self.epoch += 1;
+            self.meshes.clear();
+            self.known.clear();
+            self.gone.clear();
+        }
+        let mirror = tiles.mirror();
+        self.active = mirror.active();
+        let active: FxHashSet<u32> = self.active.iter().copied().collect();
+        self.meshes.retain(|i, _| active.contains(i));
+        let mut built = 0;
+        for &i in &self.active {
+            if self.meshes.contains_key(&i) {
+                continue;
+            }
+            let Some(t) = mirror.tile(i) else { continue };
+            self.meshes
+                .insert(i, Arc::new(mesh_of(session.geometry(), tiles, t)));
+            self.known.insert(i);
+            built += 1;
+        }
+        let gone = &mut self.gone;
+        self.known.retain(|i| {
+            let held = mirror.tile(*i).is_some();
+            if !held {
+                gone.push(*i);
+            }
+            held
+        });
+        built
+    }
+
+    /// Tiles evicted since the last call: their GPU buffers can go.
+    pub fn take_gone(&mut self) -> Vec<u32> {
+        std::mem::take(&mut self.gone)
+    }
+
+    /// Triangles drawn over the active tiles.
+    pub fn triangles(&self, dropped_only: bool) -> usize {
+        self.meshes
+            .values()
+            .map(|m| m.drawn(dropped_only) as usize)
+            .sum()
+    }
+}
+
+/// Tile `t`'s triangles as `tiles`' session draws them.
+fn mesh_of(geom: &TerrainGeometry, tiles: &TileState, t: &TileData) -> TileMesh {
+    TileMesh::of(geom, t, tiles.skirt_depth(t.tile.level))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use relief_proto::tile::body::{Dropped, Patches};
+    use relief_proto::tile::{TileId, TileShape};
+
+    #[test]
+    fn a_tile_mesh_orders_mesh_dropped_raised_skirts() {
+        let shape = TileShape::new(9, 9, 4).unwrap();
+        let geom = TerrainGeometry::new(9, 9, 10.0, 10.0, 0.5).unwrap();
+        let t = TileId {
+            level: 1,
+            x: 0,
+            y: 0,
+        };
+        let span = shape.span(t);
+        let tile = TileData {
+            tile: t,
+            span,
+            z: vec![100; span.vertex_count()],
+            patches: Patches {
+                dropped: vec![Dropped {
+                    a: 0,
+                    c: 1,
+                    at: (1, 0),
+                    z: 90,
+                }],
+                raised: vec![[0, 5, 10]],
+            },
+        };
+        let m = TileMesh::of(&geom, &tile, None);
+        assert_eq!(m.counts, [32, 1, 1, 0]);
+        assert_eq!(m.positions.len(), 3 * (25 + 1));
+        assert_eq!(m.indices.len(), 3 * 34);
+        // The dropped patch's extra vertex, then the raised patch, come after the mesh.
+        assert_eq!(&m.indices[96..99], &[0, 25, 1]);
+        assert_eq!(&m.indices[99..102], &[0, 5, 10]);
+        assert_eq!(m.drawn(true), 33);
+        assert_eq!(m.drawn(false), 34);
+        let skirted = TileMesh::of(&geom, &tile, Some(3.0));
+        assert_eq!(skirted.counts[3], 32);
+        // Skirt vertices hang 3 m below their edge vertex.
+        let z = |v: usize| skirted.positions[3 * v + 2];
+        assert!((z(26) - (z(0) - 3.0)).abs() < 1e-4);
+    }
+}

@@ -1,0 +1,235 @@
+//! The GPU side of the tile stream: per tile, a position buffer and an index buffer (read by
+//! `tiles.wgsl` as storage, so that the wireframe sees each triangle's corners), uploaded once
+//! when the tile first becomes active and kept while the client's mirror holds the tile (active
+//! or cached); one draw per active tile. Patches and skirts are vertical: nothing is culled.
+//! Depth (reversed Z), frame block and shading are the vertex renderer's (`pass.rs`,
+//! `shade.wgsl`).
+
+use super::frame::{FrameParams, frame_block};
+use super::gpu::Gpu;
+use super::pass::{self, Depth};
+use super::tile_scene::{TileMesh, TileScene};
+use rustc_hash::FxHashMap;
+use wgpu::util::DeviceExt;
+
+/// A tile's buffers on the GPU.
+struct GpuTile {
+    /// Its positions and indices, bound as group 1.
+    group: wgpu::BindGroup,
+    /// Indices drawn with every patch.
+    all: u32,
+    /// Indices drawn without the raised patches.
+    dropped_only: u32,
+}
+
+/// Pipeline and per-tile buffers for one [`TileScene`].
+pub struct TileRenderer {
+    /// The tile pass.
+    pipeline: wgpu::RenderPipeline,
+    /// The uniform block.
+    frame: wgpu::Buffer,
+    /// Group 0: the frame block.
+    frame_group: wgpu::BindGroup,
+    /// Group 1's layout: a tile's positions and indices.
+    layout_tile: wgpu::BindGroupLayout,
+    /// Buffers of the tiles held, by dense index.
+    tiles: FxHashMap<u32, GpuTile>,
+    /// The tiles to draw: the scene's active set at the last upload.
+    active: Vec<u32>,
+    /// The scene epoch the buffers belong to.
+    epoch: u64,
+    /// Depth buffer.
+    depth: Depth,
+}
+
+fn storage(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::VERTEX,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only: true },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl TileRenderer {
+    /// The pipeline drawing into `format` targets, with the buffers of `scene`'s active tiles.
+    pub fn new(gpu: &Gpu, format: wgpu::TextureFormat, scene: &mut TileScene) -> TileRenderer {
+        let dev = &gpu.device;
+        let module = pass::shader(gpu, "relief tiles", include_str!("tiles.wgsl"));
+        let layout_frame = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("relief tile frame"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }],
+        });
+        let layout_tile = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("relief tile"),
+            entries: &[storage(0), storage(1)],
+        });
+        let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("relief tiles"),
+            bind_group_layouts: &[Some(&layout_frame), Some(&layout_tile)],
+            immediate_size: 0,
+        });
+        let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("relief tiles"),
+            layout: Some(&layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_tile"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                // Crack patches and skirts are vertical and face either way.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(pass::depth_state()),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &pass::colour_target(format),
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let frame = pass::frame_buffer(gpu);
+        let frame_group = dev.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("relief tile frame"),
+            layout: &layout_frame,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame.as_entire_binding(),
+            }],
+        });
+        let mut r = TileRenderer {
+            pipeline,
+            frame,
+            frame_group,
+            layout_tile,
+            tiles: FxHashMap::default(),
+            active: Vec::new(),
+            epoch: scene.epoch,
+            depth: Depth::default(),
+        };
+        r.upload(gpu, scene);
+        r
+    }
+
+    /// Uploads the active tiles that have no buffers yet and drops the buffers of evicted
+    /// tiles (all of them when the scene started again); returns the bytes sent.
+    pub fn upload(&mut self, gpu: &Gpu, scene: &mut TileScene) -> usize {
+        if scene.epoch != self.epoch {
+            self.tiles.clear();
+            self.epoch = scene.epoch;
+        }
+        for i in scene.take_gone() {
+            self.tiles.remove(&i);
+        }
+        let mut bytes = 0;
+        for &i in &scene.active {
+            if self.tiles.contains_key(&i) {
+                continue;
+            }
+            let Some(mesh) = scene.meshes.get(&i) else {
+                continue;
+            };
+            bytes += 4 * (mesh.positions.len() + mesh.indices.len());
+            let tile = self.gpu_tile(gpu, mesh);
+            self.tiles.insert(i, tile);
+        }
+        self.active.clone_from(&scene.active);
+        bytes
+    }
+
+    fn gpu_tile(&self, gpu: &Gpu, mesh: &TileMesh) -> GpuTile {
+        let buffer = |label: &str, words: &[u8]| {
+            gpu.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: words,
+                    usage: wgpu::BufferUsages::STORAGE,
+                })
+        };
+        // Storage buffers may not be empty.
+        let positions = buffer(
+            "relief tile positions",
+            bytemuck::cast_slice(if mesh.positions.is_empty() {
+                &[0.0f32; 3]
+            } else {
+                &mesh.positions[..]
+            }),
+        );
+        let indices = buffer(
+            "relief tile indices",
+            bytemuck::cast_slice(if mesh.indices.is_empty() {
+                &[0u32; 3]
+            } else {
+                &mesh.indices[..]
+            }),
+        );
+        let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("relief tile"),
+            layout: &self.layout_tile,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: positions.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: indices.as_entire_binding(),
+                },
+            ],
+        });
+        GpuTile {
+            group,
+            all: 3 * mesh.drawn(false),
+            dropped_only: 3 * mesh.drawn(true),
+        }
+    }
+
+    /// Tiles with buffers on the GPU (active and cached).
+    pub fn held_count(&self) -> usize {
+        self.tiles.len()
+    }
+
+    /// Draws the active tiles into `target` (of the lens's size).
+    pub fn render(&mut self, gpu: &Gpu, target: &wgpu::TextureView, f: &FrameParams) {
+        gpu.queue
+            .write_buffer(&self.frame, 0, bytemuck::cast_slice(&frame_block(f)));
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        let depth = self.depth.view(gpu, (f.lens.width, f.lens.height));
+        {
+            let mut pass = pass::begin(&mut enc, target, depth, f.background);
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.frame_group, &[]);
+            for i in &self.active {
+                let Some(t) = self.tiles.get(i) else { continue };
+                let n = if f.dropped_only {
+                    t.dropped_only
+                } else {
+                    t.all
+                };
+                pass.set_bind_group(1, &t.group, &[]);
+                pass.draw(0..n, 0..1);
+            }
+        }
+        gpu.queue.submit([enc.finish()]);
+    }
+}
