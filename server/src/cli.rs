@@ -81,6 +81,79 @@ enum BenchCommand {
         #[command(flatten)]
         dem_args: DemArgs,
     },
+    /// Fly a camera path through the tile stream in process and report its figures: pixel
+    /// error, triangles, bytes, update cost, patches against skirts, restriction, pops.
+    Tiles {
+        /// The DEM to fly over (same forms as `build`'s input).
+        #[arg(long)]
+        dem: String,
+        /// Which path: `standard` (60 s loop, 100-300 m above ground) or `stress` (faster, lower).
+        #[arg(long, default_value = "standard")]
+        path: PathKind,
+        /// What tiles carry against cracks: `patches` (paper 001), `skirts` (the baseline) or
+        /// `none`.
+        #[arg(long, default_value = "patches")]
+        crack: Crack,
+        /// Screen-space error threshold in pixels.
+        #[arg(long, default_value_t = 1.0)]
+        tau: f32,
+        /// Cells per tile side (a power of two from 2 to 256).
+        #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
+        tile_size: u32,
+        /// Measure pixel error on every k-th frame [default: never fewer than 60 frames].
+        #[arg(long)]
+        px_every: Option<usize>,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        dem_args: DemArgs,
+    },
+}
+
+/// Crack strategies on the command line.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum Crack {
+    /// Precomputed crack patches (paper 001).
+    Patches,
+    /// Skirts hanging from every tile edge (Cesium's baseline).
+    Skirts,
+    /// Nothing (cracks stay open).
+    None,
+}
+
+impl From<Crack> for relief_proto::msg::CrackMode {
+    fn from(c: Crack) -> Self {
+        match c {
+            Crack::Patches => Self::Patches,
+            Crack::Skirts => Self::Skirts,
+            Crack::None => Self::None,
+        }
+    }
+}
+
+/// Prints a benchmark report: one JSON line with `json`, else a two-column table.
+fn print_report(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
+    let v = serde_json::to_value(report)?;
+    if json {
+        println!("{v}");
+        return Ok(());
+    }
+    if let serde_json::Value::Object(m) = v {
+        let width = m.keys().map(String::len).max().unwrap_or(0);
+        for (k, v) in m {
+            let text = match v {
+                serde_json::Value::Number(n) => match n.as_f64() {
+                    Some(f) if n.is_f64() => format!("{f:.3}"),
+                    _ => n.to_string(),
+                },
+                serde_json::Value::String(s) => s,
+                other => other.to_string(),
+            };
+            println!("{k:<width$}  {text}");
+        }
+    }
+    Ok(())
 }
 
 /// How to read a DEM.
@@ -227,13 +300,35 @@ fn run() -> anyhow::Result<()> {
                 progress: !dem_args.quiet,
                 ..LodBenchOptions::default()
             };
-            let report = lod::run(&d, &opts)?;
-            let text = serde_json::to_string_pretty(&report)?;
-            if json {
-                println!("{}", serde_json::to_string(&report)?);
-            } else {
-                println!("{text}");
-            }
+            print_report(&lod::run(&d, &opts)?, json)?;
+        }
+        Command::Bench {
+            which:
+                BenchCommand::Tiles {
+                    dem,
+                    path,
+                    crack,
+                    tau,
+                    tile_size,
+                    px_every,
+                    json,
+                    dem_args,
+                },
+        } => {
+            relief_proto::tile::TileShape::new(2, 2, tile_size)?;
+            crate::serve::validate::params(&relief_proto::view::Lens::STANDARD.into(), tau, None)
+                .map_err(anyhow::Error::msg)?;
+            let d = dem_args.load(&dem)?;
+            let opts = crate::bench::tiles::TileBenchOptions {
+                path,
+                tau,
+                crack: crack.into(),
+                tile_size,
+                px_every,
+                progress: !dem_args.quiet,
+                ..Default::default()
+            };
+            print_report(&crate::bench::tiles::run(&d, &opts)?, json)?;
         }
     }
     Ok(())

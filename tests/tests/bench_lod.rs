@@ -28,7 +28,7 @@ fn crop_flies_without_cracks_desyncs_or_mismatches() {
         assert!(r.splits_total > 0 && r.triangles_median > 0.0, "{r:?}");
         // The mesh is measured against the DEM, and the error is finite.
         assert!(
-            r.px_error_frames >= 12 && r.px_error_max.is_finite(),
+            r.px.px_error_frames >= 12 && r.px.px_error_max.is_finite(),
             "{r:?}"
         );
     }

@@ -7,19 +7,17 @@
 //! geomorphs applied, as a client draws it) is checked against the brute-force oracle and for
 //! cracks, and its pixel error is measured against the DEM (DESIGN.md section 7).
 
-use super::stats::{mean, median, quantile};
+use super::flight::{Flight, PxAccum, PxSummary};
+use super::stats::{median, quantile};
 use crate::dem::Dem;
-use crate::lod::measure::{Lattice, frame_errors};
 use crate::lod::vertex::session::VertexSession;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
-use crate::preprocess;
-use crate::store::Store;
 use glam::Vec3;
 use relief_proto::codec;
 use relief_proto::mesh::{self, FanMesh, MorphRule, drawn_position};
 use relief_proto::mirror::Mirror;
 use relief_proto::msg::{ServerMsg, SessionDelta, WireDelta};
-use relief_proto::path::{PATH_HZ, PathKind, camera_path};
+use relief_proto::path::{PATH_HZ, PathKind};
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{Lens, ViewState};
@@ -80,22 +78,9 @@ pub struct LodBenchReport {
     pub triangles_max: f64,
     /// Triangles of the full-resolution grid, for scale.
     pub full_res_triangles: u64,
-    /// Worst measured frame's 99th-percentile pixel error.
-    pub px_error_p99_max: f64,
-    /// Median measured frame's 99th-percentile pixel error.
-    pub px_error_p99_median: f64,
-    /// Largest pixel error of any measured sample.
-    pub px_error_max: f64,
-    /// Frames whose pixel error was measured.
-    pub px_error_frames: usize,
-    /// In-view samples measured per measured frame (mean).
-    pub px_error_samples_per_frame: f64,
-    /// Grid samples in each measured frame's lattice (all samples when the stride is 1).
-    pub px_error_lattice_samples: u64,
-    /// Stride of that lattice, in samples.
-    pub px_error_lattice_stride: u32,
-    /// In-view samples outside the mesh's outline, as a fraction.
-    pub px_error_uncovered_fraction: f64,
+    /// Measured pixel error.
+    #[serde(flatten)]
+    pub px: PxSummary,
     /// Directed edges without a twin inside the mesh, over measured frames.
     pub cracks: u64,
     /// Triangles not counter-clockwise seen from above, over measured frames.
@@ -150,41 +135,24 @@ pub struct LodBenchReport {
 
 /// Runs the benchmark on `dem`, building its store in a temporary directory.
 pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> {
-    let dir = tempfile::tempdir()?;
-    let store_path = dir.path().join("bench.relief");
-    let built = preprocess::build_store(
+    let flight = Flight::prepare(
         dem,
-        &store_path,
-        None,
+        opts.path,
         crate::store::DEFAULT_TILE_SIZE,
+        opts.px_every,
+        opts.px_min_samples,
         opts.progress,
     )?;
-    let store = Store::open(&store_path)?;
-    let engine = VertexEngine::new(&store);
+    let store = &flight.store;
+    let engine = VertexEngine::new(store);
     let geom = store.geometry();
     let shape = &geom.shape;
     let (w, h) = (shape.width(), shape.height());
     let lens = Lens::STANDARD;
     let p = opts.params;
-
-    let ground = |x: f32, y: f32| {
-        let (c, r) = geom.frame.to_grid(x, y);
-        let c = (c.round().max(0.0) as u32).min(w - 1);
-        let r = (r.round().max(0.0) as u32).min(h - 1);
-        dem.heights[(r * w + c) as usize]
-    };
-    let extent = (
-        (w - 1) as f32 * geom.frame.dx,
-        (h - 1) as f32 * geom.frame.dy,
-    );
-    let cams = camera_path(opts.path, extent.0, extent.1, ground);
+    let cams = &flight.cams;
     let frames = cams.len();
-    let px_every = opts.px_every.unwrap_or_else(|| {
-        let lat = Lattice::for_grid(w, h, opts.px_min_samples, 0);
-        let per_frame = (w as u64 / lat.stride as u64) * (h as u64 / lat.stride as u64);
-        let budget = (20_000_000 / per_frame.max(1)).max(60) as usize;
-        (frames / budget.min(frames)).clamp(1, frames / 60)
-    });
+    let px_every = flight.px_every;
     let oracle_every = (frames / opts.oracle_frames.max(1)).max(1);
 
     // Session start: the initial cut, sent as one delta of splits.
@@ -259,30 +227,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
             let rep = mesh::check_mesh(shape, |n| shape.grid_pos(n), &mesh.triangles());
             r.cracks += rep.cracks as u64;
             r.folds += rep.folds as u64;
-            let lat = Lattice::for_grid(w, h, opts.px_min_samples, f);
-            let fe = frame_errors(
-                geom,
-                &dem.heights,
-                |c, rr| store.is_void(c, rr),
-                &tris,
-                cam,
-                &lens,
-                lat,
-            );
-            let errs: Vec<f64> = fe.errors.iter().map(|&v| v as f64).collect();
-            r.px_p99.push(quantile(&errs, 0.99));
-            if std::env::var("PXDEBUG").is_ok() {
-                eprintln!(
-                    "frame {f} p99 {:.3} max {:.2} n {}",
-                    quantile(&errs, 0.99),
-                    errs.iter().copied().fold(0.0, f64::max),
-                    errs.len()
-                );
-            }
-            r.px_max = r.px_max.max(errs.iter().copied().fold(0.0, f64::max));
-            r.px_samples.push((errs.len() as u64 + fe.uncovered) as f64);
-            r.uncovered += fe.uncovered;
-            r.covered += errs.len() as u64;
+            r.px.measure(&flight, dem, &tris, f, &lens);
         }
         bar.inc(1);
     }
@@ -298,17 +243,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         triangles_median: median(&r.triangles),
         triangles_max: quantile(&r.triangles, 1.0),
         full_res_triangles: 2 * (w as u64 - 1) * (h as u64 - 1),
-        px_error_p99_max: quantile(&r.px_p99, 1.0),
-        px_error_p99_median: median(&r.px_p99),
-        px_error_max: r.px_max,
-        px_error_frames: r.px_p99.len(),
-        px_error_samples_per_frame: mean(&r.px_samples),
-        px_error_lattice_samples: {
-            let l = Lattice::for_grid(w, h, opts.px_min_samples, 0);
-            l.count(w, 0) as u64 * l.count(h, 0) as u64
-        },
-        px_error_lattice_stride: Lattice::for_grid(w, h, opts.px_min_samples, 0).stride,
-        px_error_uncovered_fraction: r.uncovered as f64 / (r.uncovered + r.covered).max(1) as f64,
+        px: r.px.summary(&flight),
         cracks: r.cracks,
         folds: r.folds,
         oracle_checks: r.oracle_checks,
@@ -337,9 +272,9 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
                 .map(|(b, a)| b / a)
                 .collect::<Vec<_>>(),
         ),
-        build_s: built.tree_s,
-        build_samples_per_s: (w as f64 * h as f64) / built.tree_s.max(1e-9),
-        store_bytes: built.bytes,
+        build_s: flight.built.tree_s,
+        build_samples_per_s: (w as f64 * h as f64) / flight.built.tree_s.max(1e-9),
+        store_bytes: flight.built.bytes,
     })
 }
 
@@ -355,11 +290,7 @@ struct Accum {
     visited: Vec<f64>,
     active: Vec<f64>,
     triangles: Vec<f64>,
-    px_p99: Vec<f64>,
-    px_samples: Vec<f64>,
-    px_max: f64,
-    uncovered: u64,
-    covered: u64,
+    px: PxAccum,
     bytes: u64,
     path_bytes: u64,
     splits: u64,

@@ -1,9 +1,13 @@
 //! In-process benchmarks: figures printed by `relief-server bench`, never asserted by tests.
 //!
+//! - [`flight`]: what they share: the store, the path, the measured pixel error.
 //! - [`lod`]: the vertex stream over the standard or stress path.
+//! - [`tiles`]: the tile stream over the same paths, with patches, skirts or nothing.
 //! - [`stats`]: medians and quantiles.
+pub mod flight;
 pub mod lod;
 pub mod stats;
+pub mod tiles;
 
 /// A progress bar on stderr when `show`, hidden otherwise.
 pub fn progress_bar(show: bool, len: u64, what: &str) -> indicatif::ProgressBar {

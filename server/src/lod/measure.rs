@@ -145,19 +145,28 @@ fn raster(geom: &TerrainGeometry, t: &[Vec3; 3], lat: Lattice, lw: u32, lh: u32,
 }
 
 /// Pinhole projection to pixel offsets from the image centre.
-struct Projector {
+pub struct Projector {
+    /// The eye.
     eye: Vec3,
+    /// View basis: right.
     right: Vec3,
+    /// View basis: up.
     up: Vec3,
+    /// View basis: forward.
     forward: Vec3,
+    /// Focal length, pixels.
     focal: f32,
+    /// Near plane, metres.
     near: f32,
+    /// Half-tangent of the horizontal field of view.
     tx: f32,
+    /// Half-tangent of the vertical field of view.
     ty: f32,
 }
 
 impl Projector {
-    fn new(c: &Camera, lens: &Lens) -> Projector {
+    /// The projection of `c` through `lens`.
+    pub fn new(c: &Camera, lens: &Lens) -> Projector {
         let [forward, right, up] = ViewState::new(c, lens).basis();
         let (tx, ty) = lens.half_tangents();
         Projector {
@@ -173,7 +182,7 @@ impl Projector {
     }
 
     /// Pixel position of `p`, or `None` outside the frustum.
-    fn project(&self, p: Vec3) -> Option<glam::Vec2> {
+    pub fn project(&self, p: Vec3) -> Option<glam::Vec2> {
         let d = p - self.eye;
         let z = d.dot(self.forward);
         if z < self.near {
@@ -184,7 +193,7 @@ impl Projector {
     }
 
     /// Pixel position of `p` with its depth clamped to the near plane.
-    fn project_clamped(&self, p: Vec3) -> glam::Vec2 {
+    pub fn project_clamped(&self, p: Vec3) -> glam::Vec2 {
         let d = p - self.eye;
         let z = d.dot(self.forward).max(self.near);
         glam::Vec2::new(d.dot(self.right), d.dot(self.up)) * (self.focal / z)

@@ -35,6 +35,9 @@ pub enum ApiError {
     /// No such route.
     #[error("no such endpoint")]
     NotFound,
+    /// No such resource; the message says why.
+    #[error("{0}")]
+    NotFoundWhy(String),
     /// A server fault (details are logged, not sent).
     #[error("internal error")]
     Internal,
@@ -45,7 +48,7 @@ impl IntoResponse for ApiError {
         let status = match self {
             ApiError::NotReady => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::BadRequest(_) => StatusCode::BAD_REQUEST,
-            ApiError::NotFound => StatusCode::NOT_FOUND,
+            ApiError::NotFound | ApiError::NotFoundWhy(_) => StatusCode::NOT_FOUND,
             ApiError::Internal => StatusCode::INTERNAL_SERVER_ERROR,
         };
         (

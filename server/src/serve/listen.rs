@@ -7,7 +7,8 @@
 
 use super::limits::ConnectionRate;
 use super::metrics::ErrorKind;
-use super::state::{AppState, app};
+use super::router::app;
+use super::state::AppState;
 use axum::extract::ConnectInfo;
 use hyper::body::Incoming;
 use hyper::server::conn::http1;

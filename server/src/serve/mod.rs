@@ -3,8 +3,10 @@
 //!
 //! - [`config`]: flags, `RELIEF_*` variables and the TOML file, resolved into [`ServeConfig`].
 //! - [`source`]: the terrain to serve: a store, or a DEM built into the cache on first start.
-//! - [`state`]: the shared state and [`state::app`], the router (testable without a socket).
+//! - [`state`]: the shared state.
+//! - [`router`]: [`router::app`], every route (testable without a socket).
 //! - [`http`]: the HTTP endpoints and their error type.
+//! - [`tiles`]: the tile pyramid over HTTP (`/v1/tiles.json`, `/v1/tiles/{z}/{x}/{y}`).
 //! - [`ws`]: the WebSocket upgrade and session admission.
 //! - [`session`]: one session's protocol (hello, welcome, flow, closes), generic over
 //!   `Sink + Stream`.
@@ -19,10 +21,12 @@ pub mod http;
 pub mod limits;
 pub mod listen;
 pub mod metrics;
+pub mod router;
 pub mod session;
 pub mod source;
 pub mod state;
 pub mod stream;
+pub mod tiles;
 pub mod validate;
 pub mod ws;
 

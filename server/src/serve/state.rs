@@ -1,13 +1,9 @@
-//! The state every handler shares, and [`app`], the router over it (callable without a socket).
+//! The state every handler shares.
 
 use super::config::Limits;
 use super::limits::SessionLimits;
 use super::metrics::Metrics;
-use super::{http, ws};
 use crate::store::Store;
-use axum::Router;
-use axum::extract::DefaultBodyLimit;
-use axum::routing::{get, post};
 use relief_proto::msg::TerrainInfo;
 use serde::Serialize;
 use std::collections::HashMap;
@@ -185,22 +181,4 @@ impl AppState {
         v.sort_by(|a, b| a.id.cmp(&b.id));
         v
     }
-}
-
-/// The router: every route of the server over `state`.
-pub fn app(state: Arc<AppState>) -> Router {
-    Router::new()
-        .route("/v1/stream", get(ws::upgrade))
-        .route("/v1/terrain", get(http::terrain))
-        .route("/v1/lod", post(http::lod))
-        .route("/v1/heights", post(http::heights))
-        .route("/v1/sessions", get(http::sessions))
-        .route("/metrics", get(http::metrics))
-        .route("/healthz", get(http::healthz))
-        .route("/readyz", get(http::readyz))
-        .fallback(http::not_found)
-        .layer(DefaultBodyLimit::max(
-            state.limits.max_message_bytes as usize,
-        ))
-        .with_state(state)
 }

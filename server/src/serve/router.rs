@@ -1,0 +1,34 @@
+//! The router: every route of the server over the shared state, built in one place so that
+//! tests can call it without a socket.
+
+use super::state::AppState;
+use super::{http, tiles, ws};
+use axum::Router;
+use axum::extract::DefaultBodyLimit;
+use axum::routing::{get, post};
+use std::sync::Arc;
+use tower_http::compression::CompressionLayer;
+
+/// The router: every route of the server over `state`.
+pub fn app(state: Arc<AppState>) -> Router {
+    // Tiles and their description are gzip-compressed for clients that accept it.
+    let tile_routes = Router::new()
+        .route("/v1/tiles.json", get(tiles::tileset))
+        .route("/v1/tiles/{z}/{x}/{y}", get(tiles::tile))
+        .layer(CompressionLayer::new().gzip(true));
+    Router::new()
+        .route("/v1/stream", get(ws::upgrade))
+        .route("/v1/terrain", get(http::terrain))
+        .route("/v1/lod", post(http::lod))
+        .route("/v1/heights", post(http::heights))
+        .route("/v1/sessions", get(http::sessions))
+        .route("/metrics", get(http::metrics))
+        .route("/healthz", get(http::healthz))
+        .route("/readyz", get(http::readyz))
+        .merge(tile_routes)
+        .fallback(http::not_found)
+        .layer(DefaultBodyLimit::max(
+            state.limits.max_message_bytes as usize,
+        ))
+        .with_state(state)
+}
