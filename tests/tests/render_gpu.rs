@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 use relief_client::render::frame::rgb8;
-use relief_client::render::offscreen::{FORMAT, Offscreen};
+use relief_client::render::offscreen::{FORMAT, Offscreen, enclosed_background};
 use relief_client::render::shot::{ShotPose, draw, frame_params, stream_to};
 use relief_client::render::{Follower, FrameParams, Gpu, MorphStage, Renderer};
 use relief_client::session::{Session, SessionConfig};
@@ -14,7 +14,7 @@ use relief_proto::tree::NodeId;
 use relief_proto::view::{Camera, Lens};
 use relief_server::serve::config::Limits;
 use relief_tests::{TestServer, path};
-use std::collections::{HashMap, HashSet, VecDeque};
+use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
 
 fn gpu() -> Gpu {
@@ -110,55 +110,6 @@ async fn golden_image_of_the_committed_crop() {
     );
     s.session.close().await;
     server.stop().await;
-}
-
-/// Background pixels not connected (4-neighbours, through background) to the top edge.
-fn enclosed_background(img: &image::RgbaImage, bg: [u8; 3]) -> usize {
-    let (w, h) = img.dimensions();
-    let is_bg = |x: u32, y: u32| {
-        let p = img.get_pixel(x, y);
-        [p[0], p[1], p[2]] == bg
-    };
-    let mut seen = vec![false; (w * h) as usize];
-    let mut queue: VecDeque<(u32, u32)> = (0..w).filter(|&x| is_bg(x, 0)).map(|x| (x, 0)).collect();
-    for &(x, y) in &queue {
-        seen[(y * w + x) as usize] = true;
-    }
-    while let Some((x, y)) = queue.pop_front() {
-        let near = [
-            (x.wrapping_sub(1), y),
-            (x + 1, y),
-            (x, y.wrapping_sub(1)),
-            (x, y + 1),
-        ];
-        for (nx, ny) in near {
-            if nx < w && ny < h && !seen[(ny * w + nx) as usize] && is_bg(nx, ny) {
-                seen[(ny * w + nx) as usize] = true;
-                queue.push_back((nx, ny));
-            }
-        }
-    }
-    let mut count = 0;
-    for y in 0..h {
-        for x in 0..w {
-            count += usize::from(is_bg(x, y) && !seen[(y * w + x) as usize]);
-        }
-    }
-    count
-}
-
-#[test]
-fn enclosed_background_counts_holes_not_sky() {
-    let bg = [255, 0, 255];
-    let mut img = image::RgbaImage::from_pixel(8, 6, image::Rgba([10, 20, 30, 255]));
-    for x in 0..8 {
-        img.put_pixel(x, 0, image::Rgba([255, 0, 255, 255]));
-    }
-    img.put_pixel(3, 1, image::Rgba([255, 0, 255, 255]));
-    assert_eq!(enclosed_background(&img, bg), 0, "sky and what touches it");
-    img.put_pixel(4, 4, image::Rgba([255, 0, 255, 255]));
-    img.put_pixel(5, 4, image::Rgba([255, 0, 255, 255]));
-    assert_eq!(enclosed_background(&img, bg), 2, "a two-pixel crack");
 }
 
 /// A session recording its changes, with its scene and a renderer.

@@ -1,6 +1,8 @@
-//! A render target without a window, read back into an image (for `shot`, tests and timing).
+//! A render target without a window, read back into an image (for `shot`, tests and timing),
+//! and the crack test's count of background pixels the terrain encloses.
 
 use super::gpu::{Gpu, RenderError};
+use std::collections::VecDeque;
 
 /// The offscreen colour format: plain 8-bit RGBA, so that the stored bytes are exactly what
 /// the shader wrote (it encodes sRGB itself) and the clear colour's bytes come back unchanged.
@@ -121,4 +123,59 @@ pub(crate) fn map_read(gpu: &Gpu, buffer: &wgpu::Buffer) -> Result<Vec<u8>, Rend
         .to_vec();
     buffer.unmap();
     Ok(out)
+}
+
+/// Background pixels not connected (4-neighbours, through background) to the top edge: holes
+/// in the terrain where the clear colour `bg` shows through (the crack test in images).
+pub fn enclosed_background(img: &image::RgbaImage, bg: [u8; 3]) -> usize {
+    let (w, h) = img.dimensions();
+    let is_bg = |x: u32, y: u32| {
+        let p = img.get_pixel(x, y);
+        [p[0], p[1], p[2]] == bg
+    };
+    let mut seen = vec![false; (w * h) as usize];
+    let mut queue: VecDeque<(u32, u32)> = (0..w).filter(|&x| is_bg(x, 0)).map(|x| (x, 0)).collect();
+    for &(x, y) in &queue {
+        seen[(y * w + x) as usize] = true;
+    }
+    while let Some((x, y)) = queue.pop_front() {
+        let near = [
+            (x.wrapping_sub(1), y),
+            (x + 1, y),
+            (x, y.wrapping_sub(1)),
+            (x, y + 1),
+        ];
+        for (nx, ny) in near {
+            if nx < w && ny < h && !seen[(ny * w + nx) as usize] && is_bg(nx, ny) {
+                seen[(ny * w + nx) as usize] = true;
+                queue.push_back((nx, ny));
+            }
+        }
+    }
+    let mut count = 0;
+    for y in 0..h {
+        for x in 0..w {
+            count += usize::from(is_bg(x, y) && !seen[(y * w + x) as usize]);
+        }
+    }
+    count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn enclosed_background_counts_holes_not_sky() {
+        let bg = [255, 0, 255];
+        let mut img = image::RgbaImage::from_pixel(8, 6, image::Rgba([10, 20, 30, 255]));
+        for x in 0..8 {
+            img.put_pixel(x, 0, image::Rgba([255, 0, 255, 255]));
+        }
+        img.put_pixel(3, 1, image::Rgba([255, 0, 255, 255]));
+        assert_eq!(enclosed_background(&img, bg), 0, "sky and what touches it");
+        img.put_pixel(4, 4, image::Rgba([255, 0, 255, 255]));
+        img.put_pixel(5, 4, image::Rgba([255, 0, 255, 255]));
+        assert_eq!(enclosed_background(&img, bg), 2, "a two-pixel crack");
+    }
 }
