@@ -18,6 +18,7 @@ use super::stats::{mean, median, quantile};
 use crate::dem::Dem;
 use crate::lod::measure::Projector;
 use crate::lod::tile::TileEngine;
+use crate::lod::tile::bits::TileBits;
 use crate::lod::tile::session::TileSession;
 use crate::store::tiles::crack_triangles;
 use glam::Vec3;
@@ -30,7 +31,6 @@ use relief_proto::tile::geometry::tile_triangles;
 use relief_proto::tile::mirror::TileMirror;
 use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::view::{Lens, ViewState};
-use rustc_hash::FxHashSet;
 use serde::Serialize;
 use std::io::Write;
 use std::time::Instant;
@@ -214,7 +214,7 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         cache_tiles: u32::MAX,
         crack: opts.crack,
     };
-    let mut session = TileSession::new(params, opts.tau, 0.9);
+    let mut session = TileSession::new(shape.tile_count(), params, opts.tau, 0.9);
     let mut mirror = TileMirror::new(shape.clone(), params);
     let info = store.tile_info();
     let mut r = Accum::default();
@@ -236,9 +236,9 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         let update_us = t0.elapsed().as_secs_f64() * 1e6;
 
         let t0 = Instant::now();
-        let scratch = engine.select(&view, opts.tau, 0.9, &FxHashSet::default());
+        let scratch = engine.select(&view, opts.tau, 0.9, &TileBits::default(), false);
         let scratch_us = t0.elapsed().as_secs_f64() * 1e6;
-        std::hint::black_box(scratch.split.len());
+        std::hint::black_box(scratch.stats.forced);
 
         let t0 = Instant::now();
         let applied = match codec::decode::<ServerMsg>(&msg, codec::HARD_LIMIT)? {
@@ -257,7 +257,8 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
             if a.body.is_some()
                 && let Some(t) = mirror.tile(a.tile)
             {
-                let skirt = (opts.crack == CrackMode::Skirts).then(|| info.skirt_height(t.tile.level));
+                let skirt =
+                    (opts.crack == CrackMode::Skirts).then(|| info.skirt_height(t.tile.level));
                 std::hint::black_box(tile_triangles(&geom.frame, geom.z_quantum, t, skirt));
             }
         }
@@ -308,7 +309,14 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         r.violations += restriction_violations(shape, &active) as u64;
         r.session_bytes.push(session.memory_bytes() as f64);
         if f > 0 {
-            pops(&mirror, &changes.removed, &changes.added, &Projector::new(cam, &lens), geom, &mut r.pops);
+            pops(
+                &mirror,
+                &changes.removed,
+                &changes.added,
+                &Projector::new(cam, &lens),
+                geom,
+                &mut r.pops,
+            );
         }
         if f % flight.px_every == 0 {
             let tris = world_triangles(&mirror, &active, geom);
@@ -382,7 +390,11 @@ fn world_triangles(
     for &i in active {
         if let Some(t) = mirror.tile(i) {
             let tt = tile_triangles(&geom.frame, geom.z_quantum, t, None);
-            out.extend(tt.mesh.iter().map(|tri| tri.map(|v| Vec3::from(tt.positions[v as usize]))));
+            out.extend(
+                tt.mesh
+                    .iter()
+                    .map(|tri| tri.map(|v| Vec3::from(tt.positions[v as usize]))),
+            );
         }
     }
     out
@@ -410,7 +422,10 @@ fn pops(
         let overlapping: Vec<usize> = (0..old.len())
             .filter(|&k| {
                 let o = old[k].span;
-                o.cols.0 <= sp.cols.1 && sp.cols.0 <= o.cols.1 && o.rows.0 <= sp.rows.1 && sp.rows.0 <= o.rows.1
+                o.cols.0 <= sp.cols.1
+                    && sp.cols.0 <= o.cols.1
+                    && o.rows.0 <= sp.rows.1
+                    && sp.rows.0 <= o.rows.1
             })
             .collect();
         let mut worst: Option<f64> = None;
@@ -432,6 +447,13 @@ fn pops(
             }
         }
         if let Some(m) = worst {
+            if m > 1.0 && std::env::var("POPDEBUG").is_ok() {
+                let levels: Vec<u8> = overlapping.iter().map(|&k| old[k].tile.level).collect();
+                eprintln!(
+                    "pop {m:.2} px: tile {:?} replaces levels {levels:?}",
+                    t.tile
+                );
+            }
             out.push(m);
         }
     }

@@ -2,6 +2,7 @@
 //! restricted selection. Pure: no I/O, no async.
 //!
 //! - this file: [`TileEngine`], a tile's box and screen error (Cesium's rule);
+//! - [`bits`]: sets of tiles as bitsets over the pyramid;
 //! - [`select`]: the selection for a camera: refine while the screen error exceeds tau, then
 //!   refine coarser neighbours until no two edge-adjacent tiles differ by more than one level;
 //! - [`session`]: one session's active tiles and client cache, and the budgeted, cache-aware
@@ -13,6 +14,7 @@
 //! whose box lies outside the view frustum has screen error 0: it is kept, coarse, so that the
 //! selection always covers the whole terrain once.
 
+pub mod bits;
 pub mod select;
 pub mod session;
 #[cfg(test)]

@@ -19,9 +19,9 @@
 //! counts how often that already held, to compare with the forced splits.
 
 use super::TileEngine;
+use super::bits::TileBits;
 use relief_proto::tile::{EDGES, TileId};
 use relief_proto::view::ViewState;
-use rustc_hash::{FxHashMap, FxHashSet};
 
 /// Counters of one selection.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -37,66 +37,77 @@ pub struct SelectStats {
 }
 
 /// A selection: the split tiles (the active ones are their children that are not split, or the
-/// root alone when none is), and each evaluated tile's screen error.
+/// root alone when none is), and, when asked for, each evaluated tile's screen error.
 #[derive(Clone, Debug, Default)]
 pub struct Selection {
-    /// Dense indices of the split tiles.
-    pub split: FxHashSet<u32>,
-    /// Screen error, pixels, of every evaluated tile.
-    pub sse: FxHashMap<u32, f32>,
+    /// The split tiles.
+    pub split: TileBits,
+    /// Screen error, pixels, of every evaluated tile (budgeted sessions only), by dense index.
+    pub sse: Vec<(u32, f32)>,
     /// Counters.
     pub stats: SelectStats,
 }
 
+impl Selection {
+    /// The screen error evaluated for tile `i` (0 if it was not).
+    pub fn sse_of(&self, i: u32) -> f32 {
+        self.sse
+            .binary_search_by_key(&i, |e| e.0)
+            .map_or(0.0, |k| self.sse[k].1)
+    }
+}
+
 impl TileEngine<'_> {
     /// The restricted selection for `view` at threshold `tau`, with hysteresis against the
-    /// previous selection's split set `prev`.
+    /// previous selection's split set `prev`; `keep_sse` keeps each evaluated screen error.
     pub fn select(
         &self,
         view: &ViewState,
         tau: f32,
         merge_ratio: f32,
-        prev: &FxHashSet<u32>,
+        prev: &TileBits,
+        keep_sse: bool,
     ) -> Selection {
         let shape = self.shape();
-        let mut sel = Selection::default();
+        let mut sel = Selection {
+            split: TileBits::new(shape.tile_count()),
+            ..Selection::default()
+        };
         let mut stack = vec![TileId::ROOT];
-        let mut leaves = Vec::new();
+        let focal_over_tau = view.focal() / tau;
         while let Some(t) = stack.pop() {
             let i = shape.index(t);
-            if shape.is_leaf(t) {
-                leaves.push(t);
-                continue;
-            }
-            let e = self.screen_error(view, t, i);
-            sel.stats.visited += 1;
-            sel.sse.insert(i, e);
-            let split = e > tau || (prev.contains(&i) && e > tau * merge_ratio);
+            let split = !shape.is_leaf(t) && {
+                let e = self.screen_error(view, t, i);
+                sel.stats.visited += 1;
+                if keep_sse {
+                    sel.sse.push((i, e));
+                }
+                e > tau || (prev.contains(i) && e > tau * merge_ratio)
+            };
             if split {
                 sel.split.insert(i);
                 stack.extend(shape.children(t));
-            } else {
-                leaves.push(t);
-            }
-        }
-        for t in leaves {
-            if let Some(p) = t.parent() {
-                let d = self.record(shape.index(p)).error * view.focal() / tau;
+            } else if let Some(p) = t.parent() {
+                // The paper's ratio: the distance below which the parent is refined, over the
+                // tile's size.
+                let d = self.record(shape.index(p)).error * focal_over_tau;
                 sel.stats.ratio_tiles += 1;
                 if d > 3.0 * self.tile_size_m(t) {
                     sel.stats.ratio_gt_3 += 1;
                 }
             }
         }
+        sel.sse.sort_unstable_by_key(|e| e.0);
         sel.stats.forced = self.restrict(&mut sel.split);
         sel
     }
 
     /// Adds the splits that make `split` restricted; returns how many.
-    pub fn restrict(&self, split: &mut FxHashSet<u32>) -> u64 {
+    pub fn restrict(&self, split: &mut TileBits) -> u64 {
         let shape = self.shape();
         let mut by_level: Vec<Vec<TileId>> = vec![Vec::new(); shape.depth() as usize + 1];
-        for &i in split.iter() {
+        for i in split.iter() {
             if let Some(t) = shape.tile(i) {
                 by_level[t.level as usize].push(t);
             }
@@ -123,24 +134,24 @@ impl TileEngine<'_> {
         forced
     }
 
-    /// The active tiles of split set `split`, ascending.
-    pub fn active_of(&self, split: &FxHashSet<u32>) -> Vec<u32> {
+    /// The active tiles of split set `split`: the root alone when none is split.
+    pub fn active_of(&self, split: &TileBits) -> TileBits {
         let shape = self.shape();
+        let mut out = TileBits::new(shape.tile_count());
         if split.is_empty() {
-            return vec![0];
+            out.insert(0);
+            return out;
         }
-        let mut out = Vec::with_capacity(split.len() * 3);
-        for &i in split {
+        for i in split.iter() {
             if let Some(t) = shape.tile(i) {
-                out.extend(
-                    shape
-                        .children(t)
-                        .map(|c| shape.index(c))
-                        .filter(|c| !split.contains(c)),
-                );
+                for c in shape.children(t) {
+                    let ci = shape.index(c);
+                    if !split.contains(ci) {
+                        out.insert(ci);
+                    }
+                }
             }
         }
-        out.sort_unstable();
         out
     }
 }

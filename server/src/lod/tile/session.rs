@@ -14,22 +14,23 @@
 //! makes one split of progress) and says whether the target was reached.
 
 use super::TileEngine;
+use super::bits::TileBits;
+use super::select::{SelectStats, Selection};
 use relief_proto::msg::{CrackMode, TileStreamParams};
 use relief_proto::tile::cache::TileCache;
 use relief_proto::tile::delta::{AddedTile, TileBlobs, TileDelta};
 use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::tile::{EDGES, TileId};
 use relief_proto::view::ViewState;
-use rustc_hash::FxHashSet;
 use std::collections::BinaryHeap;
-
-use super::select::{SelectStats, Selection};
 
 /// One tile session.
 #[derive(Clone, Debug)]
 pub struct TileSession {
     /// Split tiles of the selection the client holds.
-    split: FxHashSet<u32>,
+    split: TileBits,
+    /// Active tiles the client holds (none before the first delta).
+    active: TileBits,
     /// Active and cached tiles, as the client keeps them.
     cache: TileCache,
     /// What bodies carry.
@@ -72,10 +73,17 @@ impl Ord for Candidate {
 }
 
 impl TileSession {
-    /// A new session: the client holds nothing, and the first delta adds the tiles.
-    pub fn new(params: TileStreamParams, tau: f32, merge_ratio: f32) -> TileSession {
+    /// A new session over a pyramid of `tile_count` tiles: the client holds nothing, and the
+    /// first delta adds the tiles.
+    pub fn new(
+        tile_count: u32,
+        params: TileStreamParams,
+        tau: f32,
+        merge_ratio: f32,
+    ) -> TileSession {
         TileSession {
-            split: FxHashSet::default(),
+            split: TileBits::new(tile_count),
+            active: TileBits::new(tile_count),
             cache: TileCache::new(params.cache_tiles),
             crack: params.crack,
             tau,
@@ -100,8 +108,13 @@ impl TileSession {
                 "the snapshot's tiles are not restricted ({bad} neighbours differ by more than one level)"
             ));
         }
-        let mut s = TileSession::new(params, tau, merge_ratio);
-        s.split = relief_proto::tile::snapshot::split_set(shape, active);
+        let mut s = TileSession::new(shape.tile_count(), params, tau, merge_ratio);
+        for i in relief_proto::tile::snapshot::split_set(shape, active) {
+            s.split.insert(i);
+        }
+        for &i in active {
+            s.active.insert(i);
+        }
         s.cache
             .apply(&[], active, |_| true)
             .map_err(|e| e.to_string())?;
@@ -120,17 +133,20 @@ impl TileSession {
 
     /// The active tiles, ascending.
     pub fn active(&self) -> Vec<u32> {
-        self.cache.active()
+        self.active.iter().collect()
     }
 
     /// The split set.
-    pub fn split(&self) -> &FxHashSet<u32> {
+    pub fn split(&self) -> &TileBits {
         &self.split
     }
 
     /// Bytes of memory the state holds (approximately).
     pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of::<Self>() + self.split.capacity() * 5 + self.cache.memory_bytes()
+        std::mem::size_of::<Self>()
+            + self.split.memory_bytes()
+            + self.active.memory_bytes()
+            + self.cache.memory_bytes()
     }
 
     /// Wire bytes of adding tile `i` now.
@@ -147,19 +163,21 @@ impl TileSession {
         r.mesh_len as usize + patches + 8
     }
 
-    /// The next delta for `view`, its body within `allowance` bytes where it can be.
+    /// The next delta for `view`, its body within `allowance` bytes where it can be
+    /// (`usize::MAX`: unbudgeted).
     pub fn update(
         &mut self,
         engine: &TileEngine<'_>,
         view: &ViewState,
         allowance: usize,
     ) -> TileUpdate {
-        let sel = engine.select(view, self.tau, self.merge_ratio, &self.split);
+        let budgeted = allowance != usize::MAX;
+        let sel = engine.select(view, self.tau, self.merge_ratio, &self.split, budgeted);
         let stats = sel.stats;
-        let (split, complete) = if allowance == usize::MAX {
-            (sel.split, true)
-        } else {
+        let (split, complete) = if budgeted {
             self.budgeted(engine, &sel, allowance)
+        } else {
+            (sel.split, true)
         };
         let delta = self.advance(engine, split);
         TileUpdate {
@@ -171,32 +189,10 @@ impl TileSession {
     }
 
     /// Moves the client to split set `split`: the delta, with bodies for what it lacks.
-    pub fn advance(&mut self, engine: &TileEngine<'_>, split: FxHashSet<u32>) -> TileDelta {
-        let old = self.cache.active();
+    pub fn advance(&mut self, engine: &TileEngine<'_>, split: TileBits) -> TileDelta {
         let new = engine.active_of(&split);
-        let (mut removed, mut added_ids) = (Vec::new(), Vec::new());
-        let (mut a, mut b) = (0, 0);
-        while a < old.len() || b < new.len() {
-            match (old.get(a), new.get(b)) {
-                (Some(x), Some(y)) if x == y => {
-                    a += 1;
-                    b += 1;
-                }
-                (Some(x), Some(y)) if x < y => {
-                    removed.push(*x);
-                    a += 1;
-                }
-                (Some(x), None) => {
-                    removed.push(*x);
-                    a += 1;
-                }
-                (_, Some(y)) => {
-                    added_ids.push(*y);
-                    b += 1;
-                }
-                (None, None) => break,
-            }
-        }
+        let removed: Vec<u32> = self.active.minus(&new).collect();
+        let added_ids: Vec<u32> = new.minus(&self.active).collect();
         let added: Vec<AddedTile> = added_ids
             .iter()
             .map(|&t| AddedTile {
@@ -219,6 +215,7 @@ impl TileSession {
             .cache
             .apply(&removed, &added_ids, |i| added[i].body.is_some());
         self.split = split;
+        self.active = new;
         TileDelta { removed, added }
     }
 
@@ -228,26 +225,25 @@ impl TileSession {
         engine: &TileEngine<'_>,
         sel: &Selection,
         allowance: usize,
-    ) -> (FxHashSet<u32>, bool) {
+    ) -> (TileBits, bool) {
         let shape = engine.shape();
         let target = &sel.split;
-        let mut p: FxHashSet<u32> = self.split.intersection(target).copied().collect();
+        let mut p = self.split.and(target);
         let mut spent: usize = engine
             .active_of(&p)
-            .iter()
-            .filter(|&&t| !self.cache.is_active(t))
-            .map(|&t| self.cost(engine, t))
+            .minus(&self.active)
+            .map(|t| self.cost(engine, t))
             .sum();
-        let eligible = |p: &FxHashSet<u32>, t: TileId| {
+        let eligible = |p: &TileBits, t: TileId| {
             let i = shape.index(t);
-            target.contains(&i)
-                && !p.contains(&i)
-                && t.parent().is_none_or(|q| p.contains(&shape.index(q)))
+            target.contains(i)
+                && !p.contains(i)
+                && t.parent().is_none_or(|q| p.contains(shape.index(q)))
                 && EDGES.iter().all(|&e| {
                     shape
                         .neighbour(t, e)
                         .and_then(|n| n.parent())
-                        .is_none_or(|q| p.contains(&shape.index(q)))
+                        .is_none_or(|q| p.contains(shape.index(q)))
                 })
         };
         let children_cost = |t: TileId| -> usize {
@@ -256,12 +252,9 @@ impl TileSession {
                 .map(|c| self.cost(engine, shape.index(c)))
                 .sum()
         };
-        let prio = |t: TileId| {
-            let i = shape.index(t);
-            sel.sse.get(&i).copied().unwrap_or(0.0) / children_cost(t).max(1) as f32
-        };
+        let prio = |t: TileId| sel.sse_of(shape.index(t)) / children_cost(t).max(1) as f32;
         let mut heap = BinaryHeap::new();
-        for &i in target.difference(&p) {
+        for i in target.minus(&p) {
             if let Some(t) = shape.tile(i)
                 && eligible(&p, t)
             {
@@ -271,7 +264,7 @@ impl TileSession {
         let mut progressed = false;
         while let Some(Candidate(_, i)) = heap.pop() {
             let Some(t) = shape.tile(i) else { continue };
-            if p.contains(&i) {
+            if p.contains(i) {
                 continue;
             }
             // A split replaces the tile by its children.
@@ -291,7 +284,7 @@ impl TileSession {
                 }
             }
         }
-        let complete = p.len() == target.len();
+        let complete = p == *target;
         (p, complete)
     }
 }

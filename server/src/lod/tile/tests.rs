@@ -47,7 +47,7 @@ proptest! {
         let st = store(dir.path(), w, h, seed);
         let engine = TileEngine::new(&st);
         let p = params(cache, CrackMode::Patches);
-        let mut session = TileSession::new(p, tau, 0.9);
+        let mut session = TileSession::new(engine.shape().tile_count(), p, tau, 0.9);
         let mut mirror = TileMirror::new(engine.shape().clone(), p);
         let mut seq = 0;
         for &ps in &poses {
@@ -64,8 +64,9 @@ proptest! {
                 prop_assert_eq!(restriction_violations(engine.shape(), &active), 0);
                 if u.complete { break; }
             }
-            let sel = engine.select(&view, tau, 0.9, session.split());
-            prop_assert!(engine.active_of(&sel.split) == session.active() || budget.is_some());
+            let sel = engine.select(&view, tau, 0.9, session.split(), false);
+            let selected: Vec<u32> = engine.active_of(&sel.split).iter().collect();
+            prop_assert!(selected == session.active() || budget.is_some());
         }
     }
 
@@ -74,7 +75,7 @@ proptest! {
         let dir = tempfile::tempdir().unwrap();
         let st = store(dir.path(), w, h, seed);
         let engine = TileEngine::new(&st);
-        let mut session = TileSession::new(params(u32::MAX, CrackMode::Skirts), 1.0, 0.9);
+        let mut session = TileSession::new(engine.shape().tile_count(), params(u32::MAX, CrackMode::Skirts), 1.0, 0.9);
         let view = ViewState::new(&camera(w, h, ps), &lens());
         let first = session.update(&engine, &view, usize::MAX);
         prop_assert!(!first.delta.is_empty());
@@ -90,7 +91,12 @@ fn tiles_are_sent_once_and_then_come_from_the_cache() {
     let (w, h) = (120, 90);
     let st = store(dir.path(), w, h, 7);
     let engine = TileEngine::new(&st);
-    let mut session = TileSession::new(params(u32::MAX, CrackMode::Patches), 1.0, 0.9);
+    let mut session = TileSession::new(
+        engine.shape().tile_count(),
+        params(u32::MAX, CrackMode::Patches),
+        1.0,
+        0.9,
+    );
     let near: Pose = (0.5, 0.5, 0.0, 0.3, 0.9);
     let far: Pose = (0.5, 0.5, 1.0, 0.3, 0.0);
     let mut sent = std::collections::HashSet::new();
@@ -113,7 +119,7 @@ fn the_restriction_forces_splits_only_where_needed() {
     let engine = TileEngine::new(&st);
     let shape = engine.shape();
     // Split one finest-level path down the north-west corner by hand: a chain of levels.
-    let mut split = rustc_hash::FxHashSet::default();
+    let mut split = super::bits::TileBits::new(shape.tile_count());
     let mut t = relief_proto::tile::TileId::ROOT;
     while t.level < shape.depth() {
         split.insert(shape.index(t));
@@ -122,7 +128,7 @@ fn the_restriction_forces_splits_only_where_needed() {
     let before = split.len();
     let forced = engine.restrict(&mut split);
     assert_eq!(split.len(), before + forced as usize);
-    let active = engine.active_of(&split);
+    let active: Vec<u32> = engine.active_of(&split).iter().collect();
     assert_eq!(restriction_violations(shape, &active), 0);
     assert!(covers_once(&engine, &active));
 }

@@ -122,7 +122,12 @@ async fn open(
                             .map_err(|e| e.to_string())?;
                     TileSession::resume(&engine, tp, params.tau, params.merge_ratio, &active)?
                 }
-                None => TileSession::new(tp, params.tau, params.merge_ratio),
+                None => TileSession::new(
+                    engine.shape().tile_count(),
+                    tp,
+                    params.tau,
+                    params.merge_ratio,
+                ),
             };
             return Ok(LodStream::tiles(session, lens));
         }
