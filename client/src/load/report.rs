@@ -155,7 +155,8 @@ pub fn markdown(stages: &[StageReport], knee_p99_ms: f64, plots: &[(&str, &str)]
     if let Some(first) = stages.first() {
         let _ = writeln!(
             s,
-            "Path `{}`, tau {} px, {} poses/s per session, budget {}, fans {}.\n",
+            "Stream {}, path `{}`, tau {} px, {} poses/s per session, budget {}, fans {}.\n",
+            first.stream,
             first.path,
             first.tau,
             first.rate_hz,

@@ -31,6 +31,8 @@ struct VOut {
     @location(1) bary: vec3<f32>,
     // Height, metres, for the colour ramp.
     @location(2) height: f32,
+    // 1 on a tile's crack patch or skirt (tinted under the wireframe), else 0.
+    @location(3) crack: f32,
 };
 
 // Height colour ramp: lowland green, upland olive, brown, grey rock, snow.
@@ -64,6 +66,7 @@ fn fs(in: VOut) -> @location(0) vec4<f32> {
     let fog = 1.0 - exp(-length(in.rel) / frame.haze.w);
     c = mix(c, frame.haze.rgb, 0.45 * fog);
     if (frame.misc.w > 0.5) {
+        c = mix(c, vec3<f32>(0.85, 0.10, 0.08), 0.7 * in.crack);
         let d = in.bary / max(fwidth(in.bary), vec3<f32>(1.0e-6));
         let edge = min(min(d.x, d.y), d.z);
         c = mix(vec3<f32>(0.05, 0.05, 0.07), c, smoothstep(0.0, 1.0, edge));

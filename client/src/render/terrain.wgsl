@@ -96,6 +96,7 @@ fn morph(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
 // Vertex pulling: the vertex index walks the cell records, three slots a triangle.
 fn pulled(vi: u32, morph_here: bool) -> VOut {
     var o: VOut;
+    o.crack = 0.0;
     let corner = vi % 3u;
     o.bary = vec3<f32>(f32(corner == 0u), f32(corner == 1u), f32(corner == 2u));
     let slot = cells[vi];

@@ -1,7 +1,8 @@
 //! The GPU side of the tile stream: per tile, a position buffer and an index buffer (read by
 //! `tiles.wgsl` as storage, so that the wireframe sees each triangle's corners), uploaded once
 //! when the tile first becomes active and kept while the client's mirror holds the tile (active
-//! or cached); one draw per active tile. Patches and skirts are vertical: nothing is culled.
+//! or cached); one draw per active tile. Patches and skirts are vertical: nothing is culled;
+//! under the wireframe they are tinted, so that screenshots show them.
 //! Depth (reversed Z), frame block and shading are the vertex renderer's (`pass.rs`,
 //! `shade.wgsl`).
 
@@ -175,14 +176,11 @@ impl TileRenderer {
                 &mesh.positions[..]
             }),
         );
-        let indices = buffer(
-            "relief tile indices",
-            bytemuck::cast_slice(if mesh.indices.is_empty() {
-                &[0u32; 3]
-            } else {
-                &mesh.indices[..]
-            }),
-        );
+        // The mesh's triangle count first: the shader tints what follows (patches, skirts).
+        let mut words = Vec::with_capacity(1 + mesh.indices.len());
+        words.push(mesh.counts[0]);
+        words.extend_from_slice(&mesh.indices);
+        let indices = buffer("relief tile indices", bytemuck::cast_slice(&words));
         let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("relief tile"),
             layout: &self.layout_tile,
