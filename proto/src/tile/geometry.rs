@@ -1,6 +1,14 @@
 //! A held tile's triangles in world metres: its mesh, then its crack patches or skirts. This is
 //! all the drawing a thin client does; patches and skirts are vertical and must be drawn
 //! without back-face culling.
+//!
+//! **Morph.** A tile that replaces its parent would pop by up to its parent's error. Each
+//! interior vertex therefore also has a *morph target*, its height on the parent's mesh (the
+//! tile's own vertices on the parent's grid, split along the same diagonal), and a client
+//! blends from the target to the vertex's own height over the first moments after the tile
+//! arrives ([`morph_targets`]). Boundary vertices never move: they are shared with neighbours
+//! (which may not be morphing) and the crack patches were computed for them, so morphing them
+//! could open cracks that no patch closes.
 
 use super::EDGES;
 use super::body::{grid_triangles, skirt_triangle_count};
@@ -68,5 +76,95 @@ pub fn tile_triangles(
         mesh: grid_triangles(span),
         patches,
         skirts,
+    }
+}
+
+/// The morph target of every vertex of `tile`, z quanta: the parent's mesh height for interior
+/// vertices, the vertex's own height on the tile's boundary (and everywhere on the root tile).
+pub fn morph_targets(tile: &TileData) -> Vec<f32> {
+    let span = &tile.span;
+    let (nx, ny) = (span.nx() as usize, span.ny() as usize);
+    let own: Vec<f32> = tile.z.iter().map(|&z| z as f32).collect();
+    if tile.tile.level == 0 {
+        return own;
+    }
+    // The parent's grid lines among the tile's: every other one, and the last.
+    let lines = |n: usize| -> Vec<usize> {
+        let mut v: Vec<usize> = (0..n).step_by(2).collect();
+        if v.last() != Some(&(n - 1)) {
+            v.push(n - 1);
+        }
+        v
+    };
+    let (px, py) = (lines(nx), lines(ny));
+    let bracket = |lines: &[usize], i: usize| {
+        let k = lines.partition_point(|&l| l <= i) - 1;
+        (lines[k], lines[(k + 1).min(lines.len() - 1)])
+    };
+    let mut out = own.clone();
+    for j in 1..ny - 1 {
+        let (j0, j1) = bracket(&py, j);
+        let (r0, r1) = (span.row(j0 as u32) as f32, span.row(j1 as u32) as f32);
+        let v = if j1 > j0 {
+            (span.row(j as u32) as f32 - r0) / (r1 - r0)
+        } else {
+            0.0
+        };
+        for i in 1..nx - 1 {
+            let (i0, i1) = bracket(&px, i);
+            let (c0, c1) = (span.col(i0 as u32) as f32, span.col(i1 as u32) as f32);
+            let u = if i1 > i0 {
+                (span.col(i as u32) as f32 - c0) / (c1 - c0)
+            } else {
+                0.0
+            };
+            let at = |ii: usize, jj: usize| own[jj * nx + ii];
+            let (z00, z10, z01, z11) = (at(i0, j0), at(i1, j0), at(i0, j1), at(i1, j1));
+            out[j * nx + i] = if u <= v {
+                z00 + v * (z01 - z00) + u * (z11 - z01)
+            } else {
+                z00 + u * (z10 - z00) + v * (z11 - z10)
+            };
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tile::body::{grid_height, Patches};
+    use crate::tile::{TileId, TileShape};
+
+    #[test]
+    fn morph_targets_lie_on_the_parent_mesh_and_edges_stay() {
+        let shape = TileShape::new(300, 70, 16).unwrap();
+        let h = |c: u32, r: u32| ((c * 7919 + r * 104729) % 997) as i32;
+        for i in 1..shape.tile_count() {
+            let t = shape.tile(i).unwrap();
+            let span = shape.span(t);
+            let z: Vec<i32> = (0..span.vertex_count() as u32)
+                .map(|v| {
+                    let (c, r) = span.vertex_pos(v);
+                    h(c, r)
+                })
+                .collect();
+            let data = TileData { tile: t, span, z: z.clone(), patches: Patches::default() };
+            let m = morph_targets(&data);
+            let parent = shape.span(t.parent().unwrap_or(TileId::ROOT));
+            let pz: Vec<f32> = (0..parent.vertex_count() as u32)
+                .map(|v| {
+                    let (c, r) = parent.vertex_pos(v);
+                    h(c, r) as f32
+                })
+                .collect();
+            let (nx, ny) = (span.nx(), span.ny());
+            for v in 0..span.vertex_count() as u32 {
+                let (c, r) = span.vertex_pos(v);
+                let edge = v % nx == 0 || v / nx == 0 || v % nx == nx - 1 || v / nx == ny - 1;
+                let want = if edge { z[v as usize] as f32 } else { grid_height(&parent, &pz, c as f32, r as f32) };
+                assert!((m[v as usize] - want).abs() < 1e-2, "tile {t:?} vertex {v}: {} vs {want}", m[v as usize]);
+            }
+        }
     }
 }
