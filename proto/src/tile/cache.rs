@@ -56,6 +56,11 @@ impl TileCache {
         }
     }
 
+    /// The most tiles held.
+    pub fn limit(&self) -> u32 {
+        self.limit
+    }
+
     /// Whether `tile` is active or cached: a client that holds it needs no body.
     pub fn holds(&self, tile: u32) -> bool {
         self.held.contains_key(&tile)

@@ -67,8 +67,10 @@ pub struct TileMirror {
     crack: CrackMode,
     /// Active and cached tiles, as the server models them.
     cache: TileCache,
-    /// Every held tile's data, by dense index.
+    /// Every held tile's data, by dense index (none in a light mirror).
     tiles: FxHashMap<u32, TileData>,
+    /// Keep the decoded tiles (a light mirror only checks them and keeps the bookkeeping).
+    keep: bool,
 }
 
 impl TileMirror {
@@ -79,7 +81,28 @@ impl TileMirror {
             crack: params.crack,
             cache: TileCache::new(params.cache_tiles),
             tiles: FxHashMap::default(),
+            keep: true,
         }
+    }
+
+    /// A mirror that decodes and checks every tile and digest but keeps no tile data: what a
+    /// load generator needs, in a few bytes per tile.
+    pub fn light(shape: TileShape, params: TileStreamParams) -> TileMirror {
+        TileMirror {
+            keep: false,
+            ..TileMirror::new(shape, params)
+        }
+    }
+
+    /// Drops the cached tiles and keeps the active ones, as both ends do on a resume (the
+    /// server then knows of no cached tile).
+    pub fn keep_active_only(&mut self) {
+        let active = self.cache.active();
+        let mut cache = TileCache::new(self.cache.limit());
+        // The active set of a consistent mirror applies to an empty cache.
+        let _ = cache.apply(&[], &active, |_| true);
+        self.cache = cache;
+        self.tiles.retain(|i, _| active.binary_search(i).is_ok());
     }
 
     /// The pyramid.
@@ -123,7 +146,9 @@ impl TileMirror {
         let mut sent = 0;
         for (i, data) in decoded.into_iter().enumerate() {
             if let Some(data) = data {
-                self.tiles.insert(added[i], data);
+                if self.keep {
+                    self.tiles.insert(added[i], data);
+                }
                 sent += 1;
             }
         }
@@ -161,7 +186,7 @@ impl TileMirror {
 
     /// Tiles held, active and cached.
     pub fn held_count(&self) -> usize {
-        self.tiles.len()
+        self.cache.held_count()
     }
 
     /// The resume snapshot of the active set.
