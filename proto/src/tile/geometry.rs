@@ -133,7 +133,7 @@ pub fn morph_targets(tile: &TileData) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tile::body::{grid_height, Patches};
+    use crate::tile::body::{Patches, grid_height};
     use crate::tile::{TileId, TileShape};
 
     #[test]
@@ -149,7 +149,12 @@ mod tests {
                     h(c, r)
                 })
                 .collect();
-            let data = TileData { tile: t, span, z: z.clone(), patches: Patches::default() };
+            let data = TileData {
+                tile: t,
+                span,
+                z: z.clone(),
+                patches: Patches::default(),
+            };
             let m = morph_targets(&data);
             let parent = shape.span(t.parent().unwrap_or(TileId::ROOT));
             let pz: Vec<f32> = (0..parent.vertex_count() as u32)
@@ -162,8 +167,16 @@ mod tests {
             for v in 0..span.vertex_count() as u32 {
                 let (c, r) = span.vertex_pos(v);
                 let edge = v % nx == 0 || v / nx == 0 || v % nx == nx - 1 || v / nx == ny - 1;
-                let want = if edge { z[v as usize] as f32 } else { grid_height(&parent, &pz, c as f32, r as f32) };
-                assert!((m[v as usize] - want).abs() < 1e-2, "tile {t:?} vertex {v}: {} vs {want}", m[v as usize]);
+                let want = if edge {
+                    z[v as usize] as f32
+                } else {
+                    grid_height(&parent, &pz, c as f32, r as f32)
+                };
+                assert!(
+                    (m[v as usize] - want).abs() < 1e-2,
+                    "tile {t:?} vertex {v}: {} vs {want}",
+                    m[v as usize]
+                );
             }
         }
     }

@@ -154,6 +154,11 @@ pub struct TileBenchReport {
     pub pop_px_median: f64,
     /// Tile switches measured (tiles added after the first pose, with a vertex in view).
     pub pop_switches: usize,
+    /// The largest jump with the client's morph (interior vertices of a split's children start
+    /// on the parent's mesh; border vertices and merges still jump), pixels.
+    pub pop_morphed_px_max: f64,
+    /// 99th percentile of that over switches, pixels.
+    pub pop_morphed_px_p99: f64,
     /// Server memory of the session's state, bytes, median over poses.
     pub session_bytes: f64,
     /// Seconds to build the tile pyramid (one core).
@@ -190,6 +195,7 @@ struct Accum {
     gzip_bytes: Vec<f64>,
     path_bytes: u64,
     pops: Vec<f64>,
+    morphed_pops: Vec<f64>,
     session_bytes: Vec<f64>,
     px: PxAccum,
 }
@@ -316,6 +322,7 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
                 &Projector::new(cam, &lens),
                 geom,
                 &mut r.pops,
+                &mut r.morphed_pops,
             );
         }
         if f % flight.px_every == 0 {
@@ -373,6 +380,8 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         pop_px_p99: quantile(&r.pops, 0.99),
         pop_px_median: median(&r.pops),
         pop_switches: r.pops.len(),
+        pop_morphed_px_max: quantile(&r.morphed_pops, 1.0),
+        pop_morphed_px_p99: quantile(&r.morphed_pops, 0.99),
         session_bytes: median(&r.session_bytes),
         build_tiles_s: flight.built.tiles_s,
         store_bytes: flight.built.bytes,
@@ -401,7 +410,8 @@ fn world_triangles(
 }
 
 /// For each added tile, the largest pixel distance between its vertices as drawn now and the
-/// surface of the removed tiles it replaces at the same ground position, for `proj`.
+/// surface of the removed tiles it replaces at the same ground position, for `proj`; into
+/// `morphed`, the same with the client's morph (only border vertices of a split's children).
 fn pops(
     mirror: &TileMirror,
     removed: &[u32],
@@ -409,6 +419,7 @@ fn pops(
     proj: &Projector,
     geom: &relief_proto::terrain::TerrainGeometry,
     out: &mut Vec<f64>,
+    morphed: &mut Vec<f64>,
 ) {
     let q = geom.z_quantum;
     let old: Vec<_> = removed.iter().filter_map(|&i| mirror.tile(i)).collect();
@@ -429,6 +440,8 @@ fn pops(
             })
             .collect();
         let mut worst: Option<f64> = None;
+        let mut worst_edge: Option<f64> = None;
+        let (nx, ny) = (sp.nx(), sp.ny());
         for v in 0..sp.vertex_count() as u32 {
             let (c, rr) = sp.vertex_pos(v);
             let Some(&k) = overlapping.iter().find(|&&k| {
@@ -444,17 +457,17 @@ fn pops(
             if let (Some(a), Some(b)) = (proj.project(now), proj.project(was)) {
                 let d = f64::from(a.distance(b));
                 worst = Some(worst.map_or(d, |m| m.max(d)));
+                let (i, j) = (v % nx, v / nx);
+                if i == 0 || j == 0 || i == nx - 1 || j == ny - 1 {
+                    worst_edge = Some(worst_edge.map_or(d, |m| m.max(d)));
+                }
             }
         }
+        // A split's children morph their interior vertices from the parent's mesh.
+        let split = overlapping.iter().all(|&k| old[k].tile.level < t.tile.level);
         if let Some(m) = worst {
-            if m > 1.0 && std::env::var("POPDEBUG").is_ok() {
-                let levels: Vec<u8> = overlapping.iter().map(|&k| old[k].tile.level).collect();
-                eprintln!(
-                    "pop {m:.2} px: tile {:?} replaces levels {levels:?}",
-                    t.tile
-                );
-            }
             out.push(m);
+            morphed.push(if split { worst_edge.unwrap_or(0.0) } else { m });
         }
     }
 }
