@@ -464,7 +464,9 @@ fn pops(
             }
         }
         // A split's children morph their interior vertices from the parent's mesh.
-        let split = overlapping.iter().all(|&k| old[k].tile.level < t.tile.level);
+        let split = overlapping
+            .iter()
+            .all(|&k| old[k].tile.level < t.tile.level);
         if let Some(m) = worst {
             out.push(m);
             morphed.push(if split { worst_edge.unwrap_or(0.0) } else { m });

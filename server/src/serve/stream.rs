@@ -144,6 +144,12 @@ impl Stream {
         }
     }
 
+    /// Whether an update is cheap enough (a tile selection: tens of microseconds, bounded by
+    /// the pyramid) to run on the async worker rather than on a blocking thread.
+    pub fn is_cheap(&self) -> bool {
+        matches!(self.lod, Lod::Tiles(_))
+    }
+
     /// The current cut's digest.
     pub fn digest(&self) -> u64 {
         match &self.lod {

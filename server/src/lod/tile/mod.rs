@@ -49,7 +49,7 @@ impl<'a> TileEngine<'a> {
             store,
             shape: store.tile_shape(),
             records: store.tile_records(),
-            frame: g.frame.clone(),
+            frame: g.frame,
             quantum: g.z_quantum,
         }
     }

@@ -152,7 +152,7 @@ where
     }
 }
 
-/// Computes the next delta off the async runtime and packs its body.
+/// Computes the next delta and packs its body: off the async runtime unless it is cheap.
 async fn compute(
     lod: &mut LodStream,
     terrain: &Arc<Terrain>,
@@ -160,6 +160,15 @@ async fn compute(
     camera: Camera,
     allowance: usize,
 ) -> Result<Produced, (CloseReason, String)> {
+    if lod.is_cheap() {
+        // A tile update costs tens of microseconds: less than a trip to a blocking thread.
+        let started = Instant::now();
+        let produced = lod.update(&terrain.store, &camera, allowance);
+        state
+            .metrics
+            .observe_update(started.elapsed().as_secs_f64());
+        return Ok(produced);
+    }
     let t = terrain.clone();
     // The state moves to a blocking thread and back; a placeholder holds its place.
     let mut owned = std::mem::replace(lod, LodStream::placeholder());
