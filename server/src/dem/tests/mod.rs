@@ -8,15 +8,17 @@ use super::*;
 use tiff::encoder::{TiffEncoder, TiffValue, colortype};
 use tiff::tags::Tag;
 
-/// The path of `rel` under the shared DEM folder, or `None` (with a notice) where it is absent.
-pub(crate) fn shared(rel: &str) -> Option<String> {
+/// The path of `rel` under the shared DEM folder. Panics where it is absent. The tests on the
+/// real DEMs are `#[ignore = "needs ../shared/dem"]` (a clone of the repository has no
+/// `../shared`, and a newcomer sees them as ignored, not passed); CI runs them with
+/// `cargo test -- --ignored shared_dem_`, and there they must not pass without their data.
+pub(crate) fn shared(rel: &str) -> String {
     let p = format!("{}/../../shared/dem/{rel}", env!("CARGO_MANIFEST_DIR"));
-    if std::path::Path::new(&p).exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {p} is not here (it is in CI)");
-        None
-    }
+    assert!(
+        std::path::Path::new(&p).exists(),
+        "{p} is absent: this test needs ../shared/dem beside the repository"
+    );
+    p
 }
 
 /// The JSON sidecar of shared DEM `name`.

@@ -11,7 +11,7 @@ fn close(a: f64, b: f64, rel: f64) -> bool {
 
 /// The shared DEM `name`'s PNG decoded with its sidecar, to compare the GeoTIFF against.
 fn png_twin(name: &str, car: &serde_json::Value) -> Option<Dem> {
-    let path = shared(&format!("{name}/{name}.png"))?;
+    let path = shared(&format!("{name}/{name}.png"));
     let opts = LoadOptions {
         spacing_x: Some(1.0),
         spacing_y: Some(1.0),
@@ -26,15 +26,14 @@ fn png_twin(name: &str, car: &serde_json::Value) -> Option<Dem> {
 }
 
 #[test]
-fn shared_geotiffs_match_their_sidecars() {
+#[ignore = "needs ../shared/dem"]
+fn shared_dem_geotiffs_match_their_sidecars() {
     for (name, file, crs) in [
         ("fuji_srtm3", "osgearth_mt_fuji_90m.tif", "EPSG:4326"),
         ("bigtujunga_30m", "ttb_bigtujunga.tif", "EPSG:32611"),
         ("fortworth_plains_pysheds", "pysheds_dem.tif", "EPSG:4326"),
     ] {
-        let Some(path) = shared(&format!("{name}/{file}")) else {
-            return;
-        };
+        let path = shared(&format!("{name}/{file}"));
         let car = load_sidecar(name);
         let d = load(&path, &LoadOptions::default()).unwrap();
         assert_eq!(d.width as u64, car["width"].as_u64().unwrap(), "{name}");
@@ -71,10 +70,9 @@ fn shared_geotiffs_match_their_sidecars() {
 }
 
 #[test]
-fn fuji_voids_are_filled_within_their_surroundings() {
-    let Some(path) = shared("fuji_srtm3/osgearth_mt_fuji_90m.tif") else {
-        return;
-    };
+#[ignore = "needs ../shared/dem"]
+fn shared_dem_fuji_voids_are_filled_within_their_surroundings() {
+    let path = shared("fuji_srtm3/osgearth_mt_fuji_90m.tif");
     let d = load(&path, &LoadOptions::default()).unwrap();
     assert_eq!(d.voids.count(), 2437);
     let (w, h) = (d.width as i64, d.height as i64);
@@ -99,16 +97,15 @@ fn fuji_voids_are_filled_within_their_surroundings() {
 }
 
 #[test]
-fn shared_pngs_match_their_sidecars() {
+#[ignore = "needs ../shared/dem"]
+fn shared_dem_pngs_match_their_sidecars() {
     for name in [
         "fuji_srtm3",
         "bigtujunga_30m",
         "fortworth_plains_pysheds",
         "jacksboro_ridges_mpl",
     ] {
-        let Some(path) = shared(&format!("{name}/{name}.png")) else {
-            return;
-        };
+        let path = shared(&format!("{name}/{name}.png"));
         let car = load_sidecar(name);
         let png = PngOptions {
             scale: car["scale"].as_f64().unwrap(),
@@ -159,10 +156,9 @@ fn embedded_default_is_the_committed_crop() {
 }
 
 #[test]
-fn committed_crop_is_the_documented_window_of_the_original() {
-    let Some(p) = shared("fuji_srtm3/osgearth_mt_fuji_90m.tif") else {
-        return;
-    };
+#[ignore = "needs ../shared/dem"]
+fn shared_dem_committed_crop_is_the_documented_window_of_the_original() {
+    let p = shared("fuji_srtm3/osgearth_mt_fuji_90m.tif");
     let full = load(&p, &LoadOptions::default()).unwrap();
     let crop = embedded_default().unwrap();
     // Rows 628..=820, columns 700..=956 (server/data/README.md).
