@@ -38,3 +38,10 @@ mod tests {
         );
     }
 }
+
+/// Whether the command lines' logs on stderr may carry ANSI colours: only on a terminal, and
+/// not when `NO_COLOR` is set to anything non-empty (<https://no-color.org>).
+pub fn log_colour() -> bool {
+    use std::io::IsTerminal;
+    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
+}

@@ -218,6 +218,7 @@ fn run() -> anyhow::Result<()> {
                 .unwrap_or_else(|_| "info".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(relief_proto::errors::log_colour())
         .init();
     match Cli::parse().command {
         Command::Serve(args) => {

@@ -9,7 +9,9 @@ mod tests {
     use crate::tile::{TileId, TileShape};
 
     /// The toy terrain's samples, z quanta, row-major (5 x 3).
-    const Z: [i32; 15] = [204, 198, 191, 190, 192, 201, 197, 195, 185, 188, 200, 196, 190, 187, 186];
+    const Z: [i32; 15] = [
+        204, 198, 191, 190, 192, 201, 197, 195, 185, 188, 200, 196, 190, 187, 186,
+    ];
 
     fn blobs(shape: &TileShape, t: TileId) -> TileBlobs {
         let sp = shape.span(t);
@@ -20,11 +22,17 @@ mod tests {
             })
             .collect();
         let p = find_patches(shape, t, &z, |c, r| Z[(r * 5 + c) as usize]);
-        TileBlobs { mesh: encode_mesh(&sp, &z), patches: encode_patches(shape, t, &z, &p) }
+        TileBlobs {
+            mesh: encode_mesh(&sp, &z),
+            patches: encode_patches(shape, t, &z, &p),
+        }
     }
 
     fn hex(b: &[u8]) -> String {
-        b.iter().map(|x| format!("{x:02X}")).collect::<Vec<_>>().join(" ")
+        b.iter()
+            .map(|x| format!("{x:02X}"))
+            .collect::<Vec<_>>()
+            .join(" ")
     }
 
     #[test]
@@ -33,17 +41,29 @@ mod tests {
         let root = TileId::ROOT;
         let first = TileDelta {
             removed: vec![],
-            added: vec![AddedTile { tile: 0, body: Some(blobs(&shape, root)) }],
+            added: vec![AddedTile {
+                tile: 0,
+                body: Some(blobs(&shape, root)),
+            }],
         };
         let kids: Vec<TileId> = shape.children(root).collect();
         let split = TileDelta {
             removed: vec![0],
             added: kids
                 .iter()
-                .map(|&k| AddedTile { tile: shape.index(k), body: Some(blobs(&shape, k)) })
+                .map(|&k| AddedTile {
+                    tile: shape.index(k),
+                    body: Some(blobs(&shape, k)),
+                })
                 .collect(),
         };
-        let back = TileDelta { removed: vec![1, 2], added: vec![AddedTile { tile: 0, body: None }] };
+        let back = TileDelta {
+            removed: vec![1, 2],
+            added: vec![AddedTile {
+                tile: 0,
+                body: None,
+            }],
+        };
         let got = [
             hex(&first.encode()),
             format!("{:016X}", set_digest([0])),

@@ -23,9 +23,10 @@ pub struct ServeArgs {
     /// [default: the embedded terrain, a 257x193 crop of Mount Fuji].
     #[arg(long, env = "RELIEF_DEM")]
     pub dem: Option<String>,
-    /// Address to listen on [default: 127.0.0.1:8080].
+    /// Address to listen on, `HOST:PORT` with a host name or an IP address (e.g.
+    /// `localhost:8080`, `0.0.0.0:8080`, `[::1]:8080`) [default: 127.0.0.1:8080].
     #[arg(long, env = "RELIEF_ADDR")]
-    pub addr: Option<SocketAddr>,
+    pub addr: Option<String>,
     /// Where built stores are cached [default: $XDG_CACHE_HOME/relief, else ~/.cache/relief].
     #[arg(long, env = "RELIEF_CACHE_DIR")]
     pub cache_dir: Option<PathBuf>,
@@ -74,7 +75,7 @@ pub struct FileConfig {
     /// See [`ServeArgs::dem`].
     pub dem: Option<String>,
     /// See [`ServeArgs::addr`].
-    pub addr: Option<SocketAddr>,
+    pub addr: Option<String>,
     /// See [`ServeArgs::cache_dir`].
     pub cache_dir: Option<PathBuf>,
     /// See [`ServeArgs::max_message_bytes`].
@@ -182,6 +183,18 @@ pub enum ConfigError {
     /// An option is out of range.
     #[error("{0}")]
     Invalid(String),
+}
+
+/// The first socket address `HOST:PORT` resolves to (host names included).
+fn resolve_addr(a: &str) -> Result<SocketAddr, ConfigError> {
+    use std::net::ToSocketAddrs;
+    let hint = "give HOST:PORT, e.g. 127.0.0.1:8080, localhost:8080 or 0.0.0.0:8080";
+    match a.to_socket_addrs() {
+        Ok(mut addrs) => addrs.next().ok_or_else(|| {
+            ConfigError::Invalid(format!("address {a:?} resolves to nothing; {hint}"))
+        }),
+        Err(e) => Err(ConfigError::Invalid(format!("address {a:?}: {e}; {hint}"))),
+    }
 }
 
 fn seconds(name: &str, s: f64) -> Result<Duration, ConfigError> {
@@ -305,12 +318,13 @@ impl ServeArgs {
                 None => d.drain_timeout,
             },
         };
-        let addr = match self.addr.or(file.addr) {
-            Some(a) => a,
-            None => DEFAULT_ADDR
-                .parse()
-                .map_err(|_| ConfigError::Invalid("bad default address".into()))?,
-        };
+        let addr = resolve_addr(
+            self.addr
+                .clone()
+                .or(file.addr)
+                .as_deref()
+                .unwrap_or(DEFAULT_ADDR),
+        )?;
         Ok(ServeConfig {
             source,
             addr,
@@ -352,6 +366,28 @@ mod tests {
         );
         assert_eq!(c.source, TerrainSource::Embedded);
         assert_eq!(c.addr.to_string(), DEFAULT_ADDR);
+    }
+
+    #[test]
+    fn host_names_resolve_and_bad_addresses_say_what_to_give() {
+        let args = ServeArgs {
+            addr: Some("localhost:8080".into()),
+            ..ServeArgs::default()
+        };
+        let c = args.resolve().unwrap();
+        assert!(
+            c.addr.ip().is_loopback() && c.addr.port() == 8080,
+            "{}",
+            c.addr
+        );
+        for bad in ["8080", "localhost", "127.0.0.1:99999"] {
+            let args = ServeArgs {
+                addr: Some(bad.into()),
+                ..ServeArgs::default()
+            };
+            let e = args.resolve().unwrap_err().to_string();
+            assert!(e.contains("HOST:PORT") && e.contains(bad), "{e}");
+        }
     }
 
     #[test]
