@@ -69,6 +69,7 @@ pub struct Server {
 impl Server {
     /// Binds the configured address (port 0 picks a free one).
     pub async fn bind(config: ServeConfig) -> Result<Server, ServeError> {
+        source::check_exists(&config.source)?;
         let listener = TcpListener::bind(config.addr)
             .await
             .map_err(|source| ServeError::Bind {

@@ -27,6 +27,12 @@ pub enum SourceError {
         /// Why.
         source: crate::store::StoreError,
     },
+    /// The store file given does not exist.
+    #[error("the store {path} does not exist; build one with `relief-server build DEM -o {path}`")]
+    Missing {
+        /// The file.
+        path: String,
+    },
     /// The cache folder cannot be created.
     #[error("cannot create the cache folder {path}: {source}")]
     Cache {
@@ -61,6 +67,16 @@ pub fn cached_store_path(cache_dir: &Path, spec: &str) -> PathBuf {
         .take(40)
         .collect();
     cache_dir.join(format!("{stem}-{:016x}.relief", cache_key(spec)))
+}
+
+/// Fails early, before the server listens, for a store file that is not there.
+pub fn check_exists(source: &TerrainSource) -> Result<(), SourceError> {
+    match source {
+        TerrainSource::Store(p) if !p.exists() => Err(SourceError::Missing {
+            path: p.display().to_string(),
+        }),
+        _ => Ok(()),
+    }
 }
 
 fn open(path: &Path) -> Result<Store, SourceError> {
@@ -160,5 +176,10 @@ mod tests {
         .unwrap()
         .to_string();
         assert!(e.contains("/nonexistent/x.relief"), "{e}");
+        let e = check_exists(&TerrainSource::Store("/nonexistent/x.relief".into()))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e.matches("/nonexistent/x.relief").count(), 2, "{e}");
+        assert!(e.contains("relief-server build"), "{e}");
     }
 }
