@@ -275,7 +275,8 @@ enum Command {
         /// Seconds over which sessions start, evenly spread [default: 10% of the duration].
         #[arg(long)]
         ramp: Option<f64>,
-        /// Rebuild fans as a viewer would (costs client CPU).
+        /// Rebuild fans as a viewer would (costs client CPU); tile sessions keep their decoded
+        /// tiles (without it they keep a light mirror that checks every tile and digest).
         #[arg(long)]
         mesh: bool,
         /// Run these session counts in turn (e.g. 10,100,500) and report the knee.
@@ -303,6 +304,7 @@ fn main() -> std::process::ExitCode {
                 .unwrap_or_else(|_| "warn".into()),
         )
         .with_writer(std::io::stderr)
+        .with_ansi(relief_proto::errors::log_colour())
         .init();
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,

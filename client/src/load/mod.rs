@@ -2,8 +2,9 @@
 //! engineer who load-tests LOD update bandwidth.
 //!
 //! Each virtual client is a [`Session`] (mirror, digest check, acknowledgements; fans too with
-//! `mesh`; or, for the tile stream, the tile mirror with its digest check) flying its own path: the standard or stress loop phase-shifted by its index, or a
-//! seeded random loop. Sessions start spread over the ramp, fly until the stage ends, and stop
+//! `mesh`; or, for the tile stream, a light tile mirror that decodes and checks every tile and
+//! digest but keeps no tile data, the decoded tiles too with `mesh`) flying its own path: the
+//! standard or stress loop phase-shifted by its index, or a seeded random loop. Sessions start spread over the ramp, fly until the stage ends, and stop
 //! by themselves. Meanwhile a sampler scrapes the server's `/metrics` once a second for its CPU
 //! time, resident memory, sessions and updates.
 //!
@@ -70,11 +71,12 @@ pub struct LoadOptions {
     /// Per-session bandwidth budget, bytes per second.
     pub budget: Option<u32>,
     /// The stream every session asks for (tile sessions apply every tile delta to their tile
-    /// mirror and check its digest; they build no triangles).
+    /// mirror and check its digest; they build no triangles, and keep no tile data unless
+    /// `mesh`).
     pub stream: relief_proto::msg::StreamKind,
     /// Poses per second per session (0: each as soon as the previous is answered).
     pub rate_hz: f64,
-    /// Rebuild fans as a viewer would.
+    /// Rebuild fans as a viewer would (tile sessions: keep the decoded tiles).
     pub mesh: bool,
     /// Show a progress bar.
     pub progress: bool,

@@ -9,8 +9,7 @@ use relief_proto::mirror::{Change, Mirror};
 use relief_proto::msg::{CrackMode, TileStreamParams, Welcome, WireDelta};
 use relief_proto::snapshot::Snapshot;
 use relief_proto::terrain::TerrainGeometry;
-use relief_proto::tile::body::{encode_mesh, encode_patches, grid_height, skirt_triangle_count};
-use relief_proto::tile::delta::{AddedTile, TileBlobs, TileDelta};
+use relief_proto::tile::body::{grid_height, skirt_triangle_count};
 use relief_proto::tile::mirror::{TileData, TileMirror};
 use relief_proto::tile::{TileSetInfo, TileSpan};
 use rustc_hash::FxHashMap;
@@ -60,11 +59,15 @@ pub enum StreamState {
 }
 
 impl StreamState {
-    /// Fresh state for a session the server welcomed from scratch.
+    /// Fresh state for a session the server welcomed from scratch. A tile session that does not
+    /// `keep` its tiles gets a light mirror: every tile and digest is still decoded and
+    /// checked, but no tile data is kept (a load generator's thousands of sessions), so it
+    /// counts no triangles and has no heights.
     pub(super) fn fresh(
         w: &Welcome,
         geom: &TerrainGeometry,
         tiles: Option<TileStreamParams>,
+        keep: bool,
     ) -> Result<StreamState, ClientError> {
         match (tiles, &w.tiles) {
             (None, _) => {
@@ -83,7 +86,11 @@ impl StreamState {
                 Ok(StreamState::Tiles(TileState {
                     info: info.clone(),
                     params,
-                    mirror: TileMirror::new(shape, params),
+                    mirror: if keep {
+                        TileMirror::new(shape, params)
+                    } else {
+                        TileMirror::light(shape, params)
+                    },
                     drawn: FxHashMap::default(),
                     triangles: 0,
                 }))
@@ -148,11 +155,10 @@ impl StreamState {
 
     /// After a resumed welcome: the server knows the active set only, so a tile client's
     /// cache is cut down to it (both ends' eviction must agree).
-    pub(super) fn resumed(&mut self) -> Result<(), String> {
+    pub(super) fn resumed(&mut self) {
         if let StreamState::Tiles(t) = self {
-            t.mirror = t.active_only()?;
+            t.mirror.keep_active_only();
         }
-        Ok(())
     }
 
     /// Whether a welcome's pyramid is the one this state mirrors.
@@ -207,9 +213,14 @@ impl TileState {
     }
 
     /// How deep skirts hang under a tile of `level`, metres (`None` unless the session draws
-    /// skirts).
+    /// skirts): Cesium's five times the level's largest error, but of the level above. A skirt
+    /// must close the gap to a coarser neighbour (one level up in a restricted selection),
+    /// which that neighbour's error bounds; and the honest error of the full-resolution level
+    /// is 0, so its own would hang no skirt at all (the crack test on 16-cell tiles saw the
+    /// holes).
     pub fn skirt_depth(&self, level: u8) -> Option<f32> {
-        (self.params.crack == CrackMode::Skirts).then(|| self.info.skirt_height(level))
+        (self.params.crack == CrackMode::Skirts)
+            .then(|| self.info.skirt_height(level.saturating_sub(1)))
     }
 
     /// Height of the active tiles' surface over world `x`, `y`, metres (`None` off them).
@@ -253,43 +264,6 @@ impl TileState {
             tiles_sent: c.sent,
             tiles_cached: c.added.len() - c.sent,
         })
-    }
-
-    /// A mirror holding the active tiles alone, as a resumed server models the client: the
-    /// active tiles are packed again and applied to an empty mirror.
-    fn active_only(&self) -> Result<TileMirror, String> {
-        let shape = self.mirror.shape().clone();
-        let mut added = Vec::new();
-        for i in self.mirror.active() {
-            let t = self
-                .mirror
-                .tile(i)
-                .ok_or_else(|| format!("active tile {i} is not held"))?;
-            let patches = if self.params.crack == CrackMode::Patches {
-                encode_patches(&shape, t.tile, &t.z, &t.patches)
-            } else {
-                Vec::new()
-            };
-            added.push(AddedTile {
-                tile: i,
-                body: Some(TileBlobs {
-                    mesh: encode_mesh(&t.span, &t.z),
-                    patches,
-                }),
-            });
-        }
-        let wire = WireDelta {
-            seq: 0,
-            digest: self.mirror.digest(),
-            body: TileDelta {
-                removed: Vec::new(),
-                added,
-            }
-            .encode(),
-        };
-        let mut m = TileMirror::new(shape, self.params);
-        m.apply(&wire).map_err(|e| e.to_string())?;
-        Ok(m)
     }
 }
 

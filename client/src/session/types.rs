@@ -26,7 +26,9 @@ pub struct SessionConfig {
     /// Give up after this long without a connection.
     pub reconnect_deadline: Duration,
     /// Keep the fan mesh up to date (a viewer needs it; a load generator may skip it, and
-    /// [`Session::mesh`] then stays at the root's). Tile sessions have no fans.
+    /// [`Session::mesh`] then stays at the root's). A tile session without it keeps a light
+    /// tile mirror: every tile and digest is decoded and checked, but no tile data is kept
+    /// (nothing to draw, no triangle count, no heights), so thousands of sessions fit in memory.
     pub mesh: bool,
     /// Record every split and merge for [`Session::take_changes`] (a renderer mirrors them into
     /// GPU buffers; nobody else should pay for the list).

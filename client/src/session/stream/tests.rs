@@ -3,8 +3,9 @@
 
 use super::*;
 use relief_proto::tile::TileShape;
-use relief_proto::tile::body::find_patches;
+use relief_proto::tile::body::{encode_mesh, encode_patches, find_patches};
 use relief_proto::tile::cache::set_digest;
+use relief_proto::tile::delta::{AddedTile, TileBlobs, TileDelta};
 
 /// A 33 x 33 terrain with 8-cell tiles: depth 2, 1 + 4 + 16 tiles.
 const W: u32 = 33;
@@ -102,7 +103,13 @@ fn tiles_are_counted_sent_or_cached_with_their_triangles() {
         .unwrap();
     assert_eq!((a.tiles_sent, a.tiles_cached), (0, 1));
     assert_eq!(s.triangles, 128 + 64);
-    assert_eq!(s.skirt_depth(1), Some(10.0));
+    assert_eq!(s.skirt_depth(1), Some(20.0), "the level above's error");
+    assert_eq!(
+        s.skirt_depth(2),
+        Some(10.0),
+        "full resolution hangs skirts too"
+    );
+    assert_eq!(s.skirt_depth(0), Some(20.0));
     let g = geom();
     assert!(s.height_at(&g, 15.0, 15.0).is_some());
     assert!(s.height_at(&g, -15.0, 15.0).is_none());
@@ -133,7 +140,13 @@ fn patches_count_as_triangles_and_resume_keeps_the_active_tiles_only() {
     assert_eq!(s.triangles, 7 * 128 + patches);
     assert_eq!(s.mirror.held_count(), 9);
     let digest = s.mirror.digest();
-    let kept = s.active_only().unwrap();
+    let before = s.mirror.clone();
+    let mut st = StreamState::Tiles(s);
+    st.resumed();
+    let StreamState::Tiles(s) = st else {
+        unreachable!()
+    };
+    let kept = s.mirror();
     assert_eq!(kept.digest(), digest);
     assert_eq!(
         kept.held_count(),
@@ -141,6 +154,32 @@ fn patches_count_as_triangles_and_resume_keeps_the_active_tiles_only() {
         "the cached root and child are dropped"
     );
     for i in after {
-        assert_eq!(kept.tile(i), s.mirror.tile(i));
+        assert_eq!(kept.tile(i), before.tile(i));
     }
+    assert!(kept.tile(0).is_none() && kept.tile(1).is_none());
+}
+
+#[test]
+fn a_light_mirror_checks_every_delta_and_keeps_no_tile() {
+    let params = TileStreamParams {
+        cache_tiles: u32::MAX,
+        crack: CrackMode::Patches,
+    };
+    let mut s = state(CrackMode::Patches, u32::MAX);
+    s.mirror = TileMirror::light(shape(), params);
+    s.apply(&delta(CrackMode::Patches, &[], &[0], &[], &[0]))
+        .unwrap();
+    let kids = [1, 2, 3, 4];
+    let a = s
+        .apply(&delta(CrackMode::Patches, &[0], &kids, &[], &kids))
+        .unwrap();
+    assert_eq!((a.tiles_sent, s.active_count()), (4, 4));
+    assert!(kids.iter().all(|i| s.mirror.tile(*i).is_none()));
+    assert_eq!(s.mirror.held_count(), 5);
+    let mut bad = delta(CrackMode::Patches, &kids, &[0], &[0], &[0]);
+    bad.digest ^= 1;
+    assert!(
+        s.apply(&bad).is_err(),
+        "a light mirror still checks digests"
+    );
 }

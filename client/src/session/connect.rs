@@ -1,0 +1,183 @@
+//! Opening a session's connection: dialling, the hello and welcome, retries with exponential
+//! backoff within the reconnect deadline, and the reconnect that resumes from the mirrored cut
+//! or tile set (or starts again from scratch).
+
+use super::Session;
+use super::stream::StreamState;
+use super::types::{ClientError, Link, SessionConfig};
+use futures_util::{SinkExt, StreamExt};
+use relief_proto::close::CloseReason;
+use relief_proto::codec;
+use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, Resume, ServerMsg, StreamKind};
+use std::time::{Duration, Instant};
+use tokio::net::TcpStream;
+use tokio_tungstenite::tungstenite::Message;
+use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
+use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
+
+/// A session's WebSocket.
+pub(super) type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
+
+pub(super) fn decode(bytes: &[u8]) -> Result<ServerMsg, ClientError> {
+    codec::decode(bytes, codec::HARD_LIMIT).map_err(|e| ClientError::Protocol(e.to_string()))
+}
+
+async fn dial(url: &str) -> Result<Ws, String> {
+    let cfg = WebSocketConfig::default()
+        .max_message_size(Some(codec::HARD_LIMIT))
+        .max_frame_size(Some(codec::HARD_LIMIT));
+    tokio_tungstenite::connect_async_with_config(url, Some(cfg), true)
+        .await
+        .map(|(ws, _)| ws)
+        .map_err(|e| e.to_string())
+}
+
+/// One step of the handshake's outcome.
+enum Opened {
+    /// Welcomed on this connection.
+    Welcome(Box<Ws>, relief_proto::msg::Welcome, usize),
+    /// Closed for a reason worth retrying.
+    Retry(String),
+}
+
+async fn handshake(config: &SessionConfig, resume: Option<Resume>) -> Result<Opened, ClientError> {
+    let mut ws = match dial(&config.url).await {
+        Ok(ws) => ws,
+        Err(e) => return Ok(Opened::Retry(e)),
+    };
+    let hello = ClientMsg::Hello(Hello {
+        version: PROTOCOL_VERSION,
+        kind: config.stream,
+        lens: config.lens.into(),
+        tau: config.tau,
+        budget: config.budget,
+        resume,
+    });
+    if let Err(e) = ws.send(Message::Binary(codec::encode(&hello).into())).await {
+        return Ok(Opened::Retry(e.to_string()));
+    }
+    loop {
+        match ws.next().await {
+            Some(Ok(Message::Binary(b))) => match decode(&b)? {
+                ServerMsg::Welcome(w) => return Ok(Opened::Welcome(Box::new(ws), w, b.len())),
+                other => {
+                    return Err(ClientError::Protocol(format!(
+                        "expected a welcome, got {other:?}"
+                    )));
+                }
+            },
+            Some(Ok(Message::Close(frame))) => {
+                let (code, text) = frame
+                    .map(|f| (u16::from(f.code), f.reason.to_string()))
+                    .unwrap_or((1005, String::new()));
+                return closed(code, text).map(Opened::Retry);
+            }
+            Some(Ok(_)) => continue,
+            Some(Err(e)) => return Ok(Opened::Retry(e.to_string())),
+            None => return Ok(Opened::Retry("connection closed".into())),
+        }
+    }
+}
+
+/// The idle timeout a welcome announces (at least 100 ms, so pings never flood).
+pub(super) fn idle_of(w: &relief_proto::msg::Welcome) -> Duration {
+    Duration::from_millis(u64::from(w.idle_timeout_ms).max(100))
+}
+
+/// A close worth retrying gives its text; any other is the session's end.
+pub(super) fn closed(code: u16, text: String) -> Result<String, ClientError> {
+    match CloseReason::from_code(code) {
+        Some(r) if !r.retry() => Err(ClientError::Closed { code, text }),
+        _ => Ok(format!("closed ({code}): {text}")),
+    }
+}
+
+impl Session {
+    pub(super) async fn establish(
+        config: &SessionConfig,
+        resume: Option<Resume>,
+        link: &Link,
+    ) -> Result<(Ws, relief_proto::msg::Welcome, usize), ClientError> {
+        let started = Instant::now();
+        let mut wait = config.backoff_initial;
+        loop {
+            let last = match handshake(config, resume.clone()).await? {
+                Opened::Welcome(ws, w, bytes) => {
+                    if w.version != PROTOCOL_VERSION {
+                        return Err(ClientError::Protocol(format!(
+                            "server speaks protocol {}, this client {PROTOCOL_VERSION}",
+                            w.version
+                        )));
+                    }
+                    return Ok((*ws, w, bytes));
+                }
+                Opened::Retry(e) => e,
+            };
+            link.set(Some(format!("{last}; reconnecting")));
+            if started.elapsed() + wait > config.reconnect_deadline {
+                return Err(ClientError::Connect {
+                    url: config.url.clone(),
+                    last,
+                });
+            }
+            tracing::debug!("connect failed ({last}); retrying in {wait:?}");
+            tokio::time::sleep(wait).await;
+            wait = (wait * 2).min(config.backoff_max);
+        }
+    }
+
+    /// Reconnects, resuming from the mirror's cut unless `fresh`, and sends the last pose again.
+    pub(super) async fn reconnect(&mut self, fresh: bool) -> Result<(), ClientError> {
+        self.ws = None;
+        self.counters.reconnects += 1;
+        self.link.set(Some("connection lost; reconnecting".into()));
+        let resume = if fresh {
+            None
+        } else {
+            self.stream.snapshot(&self.geom).map(|snapshot| Resume {
+                terrain_id: self.info.id,
+                snapshot,
+            })
+        };
+        let (ws, w, bytes) = match Self::establish(&self.config, resume, &self.link).await {
+            // The server refused the snapshot (e.g. it now holds another terrain): start afresh.
+            Err(ClientError::Closed { code, text }) if code == CloseReason::BadSnapshot.code() => {
+                tracing::info!("resume refused ({text}); starting from the root");
+                Self::establish(&self.config, None, &self.link).await?
+            }
+            r => r?,
+        };
+        let same = w.terrain == self.info && self.stream.same_pyramid(&w);
+        if w.resumed && same && w.digest == self.stream.digest() {
+            self.stream.resumed();
+            self.counters.resumes += 1;
+        } else {
+            // Start again from scratch (after a desync, or on a server with another terrain).
+            self.info = w.terrain.clone();
+            self.geom = self
+                .info
+                .geometry()
+                .map_err(|e| ClientError::Protocol(format!("bad terrain in welcome: {e}")))?;
+            self.stream =
+                StreamState::fresh(&w, &self.geom, tile_params(&self.config), self.config.mesh)?;
+            self.generation += 1;
+        }
+        self.counters.bytes_in += bytes as u64;
+        self.max_in_flight = w.max_in_flight;
+        self.idle_timeout = idle_of(&w);
+        self.ws = Some(ws);
+        self.link.set(None);
+        if let Some((_, cam)) = self.last_pose {
+            self.send_pose(cam).await?;
+        }
+        Ok(())
+    }
+}
+
+/// The tile stream's parameters, for a tile session's config.
+pub(super) fn tile_params(config: &SessionConfig) -> Option<relief_proto::msg::TileStreamParams> {
+    match config.stream {
+        StreamKind::Vertex => None,
+        StreamKind::Tiles(p) => Some(p),
+    }
+}
