@@ -3,6 +3,10 @@
 //! grazing, on a magenta background. With crack patches, and with skirts, no background shows
 //! through the terrain; with nothing against cracks it does (so the test can fail). It also
 //! prints what paper 001's rule alone (dropped patches, no raised ones) would leave.
+//!
+//! The server serves the embedded crop built with 16-cell tiles (five levels, so level seams
+//! and patches are everywhere), and frames are drawn one pose interval after their pose, as
+//! `shot` and `render-bench` draw them: tiles that arrived by a split are mid-morph.
 
 use relief_client::render::frame::rgb8;
 use relief_client::render::offscreen::{FORMAT, Offscreen, enclosed_background};
@@ -10,8 +14,15 @@ use relief_client::render::{FrameParams, Gpu, TileRenderer, TileScene};
 use relief_client::session::{Session, SessionConfig};
 use relief_proto::msg::{CrackMode, StreamKind, TileStreamParams};
 use relief_proto::view::{Camera, Lens};
-use relief_server::serve::config::Limits;
+use relief_server::serve::config::{Limits, ServeConfig, TerrainSource};
 use relief_tests::{TestServer, path};
+use std::time::Instant;
+
+/// Tile size of the test's store: small, for many levels on the small crop.
+const TILE: u32 = 16;
+
+/// Poses a second along the path (the morph's clock: frames are drawn one interval late).
+const HZ: f32 = 10.0;
 
 /// Magenta: no terrain colour comes near it.
 const BG: [u8; 3] = [255, 0, 255];
@@ -36,10 +47,16 @@ struct Holes {
     at: Vec<(usize, f32, usize)>,
     /// Patch triangles drawn in the checked frames (to show the patches are exercised).
     patch_triangles: usize,
+    /// Tiles drawn mid-morph, summed over the checked frames.
+    morphing: usize,
+    /// Pixels that differ between one view drawn on arrival of morphing tiles and settled.
+    morph_moved: usize,
+    /// Tile levels active in the checked frames.
+    levels: std::collections::BTreeSet<u8>,
 }
 
 /// Flies 160 poses of the standard path with a tile session in `crack` mode at `tau` and counts
-/// the enclosed background pixels every eighth pose, looking ahead, down (-80 degrees) and
+/// the enclosed background pixels every fourth pose, looking ahead, down (-80 degrees) and
 /// grazing (-3 degrees). Returns the counts drawn with every patch, and with the dropped ones
 /// alone.
 async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes) {
@@ -60,11 +77,39 @@ async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes)
     for (k, cam) in path(0, 160).iter().enumerate() {
         let seq = session.send_pose(*cam).await.unwrap();
         session.wait_for_pose(seq).await.unwrap();
-        scene.sync(&session);
+        let now = k as f32 / HZ;
+        scene.sync(&session, now);
         renderer.upload(gpu, &mut scene);
-        if k % 8 != 7 {
+        if k % 4 != 3 {
             continue;
         }
+        // Drawn one pose interval later, as `shot` and `render-bench` draw (the tiles of this
+        // pose's splits at alpha 0.4), or at once (alpha 0: on their parent's mesh).
+        let drawn_at = now + if k % 8 == 7 { 1.0 / HZ } else { 0.0 };
+        let morphing = scene
+            .active
+            .iter()
+            .filter(|&&i| scene.arrival(i) > drawn_at - 0.25)
+            .count();
+        if morphing > 0 && all.morph_moved == 0 {
+            // The morph shows: the same view drawn on arrival and once settled differs.
+            let mut at = |t: f32| {
+                let p = FrameParams {
+                    background: rgb8(BG),
+                    ..FrameParams::offscreen(&session, *cam, lens(), t)
+                };
+                renderer.render(gpu, &target.view, &p);
+                target.read(gpu).unwrap()
+            };
+            let (a, b) = (at(now), at(now + 1.0));
+            all.morph_moved = a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count();
+        }
+        let shape = session.tiles().unwrap().mirror().shape().clone();
+        let levels: Vec<u8> = scene
+            .active
+            .iter()
+            .map(|&i| shape.tile(i).unwrap().level)
+            .collect();
         let down = Camera {
             pitch: -80f32.to_radians(),
             ..*cam
@@ -78,7 +123,7 @@ async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes)
                 let p = FrameParams {
                     background: rgb8(BG),
                     dropped_only,
-                    ..FrameParams::offscreen(&session, c, lens(), 0.0)
+                    ..FrameParams::offscreen(&session, c, lens(), drawn_at)
                 };
                 renderer.render(gpu, &target.view, &p);
                 let img = target.read(gpu).unwrap();
@@ -96,6 +141,8 @@ async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes)
                 }
                 holes.pixels += n;
                 holes.frames += 1;
+                holes.morphing += morphing;
+                holes.levels.extend(levels.iter().copied());
                 holes.patch_triangles += scene
                     .meshes
                     .values()
@@ -114,26 +161,40 @@ async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes)
     (all, dropped)
 }
 
-/// The standard path at tau 1 and at tau 8. On the committed crop (three tile levels) tau 1
-/// keeps the tiles near the path at the finest level, so the level seams that open cracks are
-/// few; tau 8 gives many.
+/// The standard path at tau 1 and at tau 8, on the crop's 16-cell tile pyramid.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn tiles_show_no_cracks_with_patches_or_skirts_and_cracks_without() {
-    let server = TestServer::start(Limits::default()).await;
+    let t0 = Instant::now();
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("fuji16.relief");
+    let dem = relief_server::dem::embedded_default().unwrap();
+    relief_server::preprocess::build_store(&dem, &store, None, TILE, false).unwrap();
+    let built = t0.elapsed();
+    let server = TestServer::start_with(ServeConfig {
+        source: TerrainSource::Store(store),
+        addr: "127.0.0.1:0".parse().unwrap(),
+        cache_dir: dir.path().join("cache"),
+        limits: Limits::default(),
+    })
+    .await;
     let gpu = Gpu::headless().unwrap_or_else(|e| panic!("{e}"));
     let url = server.url();
-    let mut none_total = 0;
+    let (mut none_total, mut morphing, mut moved) = (0, 0, 0);
     for tau in [1.0, 8.0] {
         let (patches, dropped_only) = fly(&gpu, &url, CrackMode::Patches, tau).await;
         let (skirts, _) = fly(&gpu, &url, CrackMode::Skirts, tau).await;
         let (none, _) = fly(&gpu, &url, CrackMode::None, tau).await;
         eprintln!(
             "tau {tau}: enclosed background pixels over {} frames: patches {} ({} patch \
-             triangles drawn), skirts {}, none {} (in {} frames), dropped patches only {} \
-             (in {} frames: {:?})",
+             triangles drawn, {} tiles mid-morph summed over frames, {} pixels moved by a morph, \
+             levels {:?}), skirts {}, none {} (in {} \
+             frames), dropped patches only {} (in {} frames: {:?})",
             patches.frames,
             patches.pixels,
             patches.patch_triangles,
+            patches.morphing,
+            patches.morph_moved,
+            patches.levels,
             skirts.pixels,
             none.pixels,
             none.at.len(),
@@ -141,10 +202,15 @@ async fn tiles_show_no_cracks_with_patches_or_skirts_and_cracks_without() {
             dropped_only.at.len(),
             dropped_only.at,
         );
-        assert!(patches.frames >= 60, "{} frames checked", patches.frames);
+        assert!(patches.frames >= 120, "{} frames checked", patches.frames);
         assert!(
             patches.patch_triangles > 0,
             "no patch was drawn: not a test of them"
+        );
+        assert!(
+            patches.levels.len() >= 3,
+            "level seams of at least three levels: {:?}",
+            patches.levels
         );
         assert_eq!(
             patches.pixels, 0,
@@ -157,10 +223,22 @@ async fn tiles_show_no_cracks_with_patches_or_skirts_and_cracks_without() {
             skirts.at
         );
         none_total += none.pixels;
+        morphing += patches.morphing;
+        moved += patches.morph_moved;
     }
+    assert!(
+        morphing > 0,
+        "no tile was drawn mid-morph: not a test of the morph"
+    );
+    assert!(moved > 0, "the morph moves nothing on screen");
     assert!(
         none_total > 0,
         "without patches or skirts no crack shows: the test cannot see cracks"
+    );
+    eprintln!(
+        "store built in {:.1} s; test {:.1} s",
+        built.as_secs_f64(),
+        t0.elapsed().as_secs_f64()
     );
     server.stop().await;
 }

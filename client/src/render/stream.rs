@@ -29,12 +29,13 @@ impl StreamScene {
         }
     }
 
-    /// Follows what `session` changed since the last call (new splits stamped with `now`);
+    /// Follows what `session` changed since the last call (new splits, or tiles arrived by a
+    /// split, stamped with `now`);
     /// returns the splits and merges applied, or the tiles built.
     pub fn sync(&mut self, session: &mut Session, now: f32) -> usize {
         match self {
             StreamScene::Vertex(f) if !session.is_tiles() => f.sync(session, now),
-            StreamScene::Tiles(t) if session.is_tiles() => t.sync(session),
+            StreamScene::Tiles(t) if session.is_tiles() => t.sync(session, now),
             _ => {
                 *self = StreamScene::new(session);
                 0

@@ -29,8 +29,14 @@ pub struct TileRenderer {
     pipeline: wgpu::RenderPipeline,
     /// The uniform block.
     frame: wgpu::Buffer,
-    /// Group 0: the frame block.
+    /// Group 0's layout: the frame block and the arrival times.
+    layout_frame: wgpu::BindGroupLayout,
+    /// Group 0: the frame block and the arrival times.
     frame_group: wgpu::BindGroup,
+    /// Arrival time of each active tile, in the order of `active`.
+    arrivals: wgpu::Buffer,
+    /// Its capacity, floats.
+    arrivals_cap: usize,
     /// Group 1's layout: a tile's positions and indices.
     layout_tile: wgpu::BindGroupLayout,
     /// Buffers of the tiles held, by dense index.
@@ -56,6 +62,39 @@ fn storage(binding: u32) -> wgpu::BindGroupLayoutEntry {
     }
 }
 
+/// A storage buffer of `cap` arrival times.
+fn arrival_buffer(gpu: &Gpu, cap: usize) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("relief tile arrivals"),
+        size: 4 * cap.max(1) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+/// Group 0: the frame block and the arrival times.
+fn frame_group(
+    gpu: &Gpu,
+    layout: &wgpu::BindGroupLayout,
+    frame: &wgpu::Buffer,
+    arrivals: &wgpu::Buffer,
+) -> wgpu::BindGroup {
+    gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("relief tile frame"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: arrivals.as_entire_binding(),
+            },
+        ],
+    })
+}
+
 impl TileRenderer {
     /// The pipeline drawing into `format` targets, with the buffers of `scene`'s active tiles.
     pub fn new(gpu: &Gpu, format: wgpu::TextureFormat, scene: &mut TileScene) -> TileRenderer {
@@ -63,16 +102,19 @@ impl TileRenderer {
         let module = pass::shader(gpu, "relief tiles", include_str!("tiles.wgsl"));
         let layout_frame = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("relief tile frame"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
                 },
-                count: None,
-            }],
+                storage(1),
+            ],
         });
         let layout_tile = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("relief tile"),
@@ -110,18 +152,16 @@ impl TileRenderer {
             cache: None,
         });
         let frame = pass::frame_buffer(gpu);
-        let frame_group = dev.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("relief tile frame"),
-            layout: &layout_frame,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: frame.as_entire_binding(),
-            }],
-        });
+        let arrivals_cap = 256;
+        let arrivals = arrival_buffer(gpu, arrivals_cap);
+        let frame_group = frame_group(gpu, &layout_frame, &frame, &arrivals);
         let mut r = TileRenderer {
             pipeline,
             frame,
+            layout_frame,
             frame_group,
+            arrivals,
+            arrivals_cap,
             layout_tile,
             tiles: FxHashMap::default(),
             active: Vec::new(),
@@ -155,7 +195,17 @@ impl TileRenderer {
             self.tiles.insert(i, tile);
         }
         self.active.clone_from(&scene.active);
-        bytes
+        let arrivals: Vec<f32> = self.active.iter().map(|&i| scene.arrival(i)).collect();
+        if arrivals.len() > self.arrivals_cap {
+            self.arrivals_cap = arrivals.len().next_power_of_two();
+            self.arrivals = arrival_buffer(gpu, self.arrivals_cap);
+            self.frame_group = frame_group(gpu, &self.layout_frame, &self.frame, &self.arrivals);
+        }
+        if !arrivals.is_empty() {
+            gpu.queue
+                .write_buffer(&self.arrivals, 0, bytemuck::cast_slice(&arrivals));
+        }
+        bytes + 4 * arrivals.len()
     }
 
     fn gpu_tile(&self, gpu: &Gpu, mesh: &TileMesh) -> GpuTile {
@@ -171,7 +221,7 @@ impl TileRenderer {
         let positions = buffer(
             "relief tile positions",
             bytemuck::cast_slice(if mesh.positions.is_empty() {
-                &[0.0f32; 3]
+                &[0.0f32; 4]
             } else {
                 &mesh.positions[..]
             }),
@@ -217,7 +267,7 @@ impl TileRenderer {
             let mut pass = pass::begin(&mut enc, target, depth, f.background);
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.frame_group, &[]);
-            for i in &self.active {
+            for (k, i) in self.active.iter().enumerate() {
                 let Some(t) = self.tiles.get(i) else { continue };
                 let n = if f.dropped_only {
                     t.dropped_only
@@ -225,7 +275,9 @@ impl TileRenderer {
                     t.all
                 };
                 pass.set_bind_group(1, &t.group, &[]);
-                pass.draw(0..n, 0..1);
+                // The instance index picks the tile's arrival time.
+                let k = k as u32;
+                pass.draw(0..n, k..k + 1);
             }
         }
         gpu.queue.submit([enc.finish()]);
