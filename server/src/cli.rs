@@ -3,11 +3,12 @@
 //! as a child process.
 
 use crate::bench::lod::{self, LodBenchOptions};
-use crate::dem::{self, LoadOptions};
+use crate::dem::DemArgs;
+
 use crate::lod::vertex::LodParams;
 use crate::preprocess;
 use anyhow::Context;
-use clap::{Args, Parser, Subcommand};
+use clap::{Parser, Subcommand};
 use relief_proto::path::PathKind;
 use std::path::PathBuf;
 
@@ -156,49 +157,6 @@ fn print_report(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()
     Ok(())
 }
 
-/// How to read a DEM.
-#[derive(Args)]
-struct DemArgs {
-    /// PNG only: metres per 16-bit value.
-    #[arg(long, default_value_t = 1.0)]
-    png_scale: f64,
-    /// PNG only: metres added to every value.
-    #[arg(long, default_value_t = 0.0)]
-    png_offset: f64,
-    /// PNG only: the 16-bit value that means "no data" (use -1 for none).
-    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
-    png_nodata: i32,
-    /// Ground metres between columns (required for PNG; overrides the GeoTIFF's tags).
-    #[arg(long)]
-    spacing_x: Option<f64>,
-    /// Ground metres between rows (required for PNG; overrides the GeoTIFF's tags).
-    #[arg(long)]
-    spacing_y: Option<f64>,
-    /// Refuse DEMs with more samples than this.
-    #[arg(long, default_value_t = dem::DEFAULT_MAX_SAMPLES)]
-    max_samples: u64,
-    /// Hide progress bars.
-    #[arg(long)]
-    quiet: bool,
-}
-
-impl DemArgs {
-    fn load(&self, spec: &str) -> anyhow::Result<dem::Dem> {
-        let opts = LoadOptions {
-            max_samples: self.max_samples,
-            spacing_x: self.spacing_x,
-            spacing_y: self.spacing_y,
-            png: dem::PngOptions {
-                scale: self.png_scale,
-                offset: self.png_offset,
-                nodata_value: u16::try_from(self.png_nodata).ok(),
-            },
-            progress: !self.quiet,
-        };
-        dem::load(spec, &opts).context("cannot load the DEM")
-    }
-}
-
 /// Parses the arguments, runs the command, and turns an error into one line and exit code 1.
 pub fn main() -> std::process::ExitCode {
     match run() {
@@ -241,7 +199,7 @@ fn run() -> anyhow::Result<()> {
             dem,
         } => {
             relief_proto::tile::TileShape::new(2, 2, tile_size)?;
-            let d = dem.load(&input)?;
+            let d = dem.load(&input).context("cannot load the DEM")?;
             let rep = preprocess::build_store(&d, &output, z_quantum, tile_size, !dem.quiet)
                 .context("cannot build the store")?;
             let samples = d.width as f64 * d.height as f64;
@@ -290,7 +248,7 @@ fn run() -> anyhow::Result<()> {
                     dem_args,
                 },
         } => {
-            let d = dem_args.load(&dem)?;
+            let d = dem_args.load(&dem).context("cannot load the DEM")?;
             let opts = LodBenchOptions {
                 path,
                 params: LodParams {
@@ -319,7 +277,7 @@ fn run() -> anyhow::Result<()> {
             relief_proto::tile::TileShape::new(2, 2, tile_size)?;
             crate::serve::validate::params(&relief_proto::view::Lens::STANDARD.into(), tau, None)
                 .map_err(anyhow::Error::msg)?;
-            let d = dem_args.load(&dem)?;
+            let d = dem_args.load(&dem).context("cannot load the DEM")?;
             let opts = crate::bench::tiles::TileBenchOptions {
                 path,
                 tau,
@@ -333,4 +291,42 @@ fn run() -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::serve::config::TerrainSource;
+
+    #[test]
+    fn serve_and_build_take_the_same_dem_arguments() {
+        let dem = [
+            "--dem",
+            "heights.png",
+            "--png-offset",
+            "-17",
+            "--spacing-x",
+            "30",
+            "--spacing-y",
+            "25",
+        ];
+        let serve = Cli::try_parse_from(["relief-server", "serve"].iter().chain(&dem)).unwrap();
+        let Command::Serve(args) = serve.command else {
+            panic!("not serve")
+        };
+        let TerrainSource::Dem(spec, opts) = args.resolve().unwrap().source else {
+            panic!("not a DEM")
+        };
+        assert_eq!(spec, "heights.png");
+        assert_eq!(
+            (opts.spacing_x, opts.spacing_y, opts.png.offset),
+            (Some(30.0), Some(25.0), -17.0)
+        );
+        let build = ["relief-server", "build", "heights.png", "-o", "x.relief"];
+        let build = Cli::try_parse_from(build.iter().chain(&dem[2..])).unwrap();
+        let Command::Build { dem: a, .. } = build.command else {
+            panic!("not build")
+        };
+        assert_eq!(a.options(), opts);
+    }
 }

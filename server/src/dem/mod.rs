@@ -23,6 +23,7 @@
 //! - grids where every sample is void;
 //! - a missing or non-positive ground spacing.
 
+pub mod args;
 mod error;
 pub mod fill;
 pub mod geotiff;
@@ -31,6 +32,7 @@ mod noise;
 pub mod png;
 pub mod synthetic;
 
+pub use args::DemArgs;
 pub use error::DemError;
 pub use mask::VoidMask;
 

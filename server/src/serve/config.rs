@@ -23,6 +23,9 @@ pub struct ServeArgs {
     /// [default: the embedded terrain, a 257x193 crop of Mount Fuji].
     #[arg(long, env = "RELIEF_DEM")]
     pub dem: Option<String>,
+    /// How to read `--dem` (the same options as `build`; flags only, not in the TOML file).
+    #[command(flatten)]
+    pub dem_args: crate::dem::DemArgs,
     /// Address to listen on, `HOST:PORT` with a host name or an IP address (e.g.
     /// `localhost:8080`, `0.0.0.0:8080`, `[::1]:8080`) [default: 127.0.0.1:8080].
     #[arg(long, env = "RELIEF_ADDR")]
@@ -105,8 +108,8 @@ pub enum TerrainSource {
     Embedded,
     /// A store file, mapped as it is.
     Store(PathBuf),
-    /// A DEM, built into the cache on first start.
-    Dem(String),
+    /// A DEM and how to read it, built into the cache on first start.
+    Dem(String, crate::dem::LoadOptions),
 }
 
 /// The limits that protect the server from its clients.
@@ -254,7 +257,7 @@ impl ServeArgs {
                 ));
             }
             (Some(s), None) => TerrainSource::Store(s),
-            (None, Some(d)) => TerrainSource::Dem(d),
+            (None, Some(d)) => TerrainSource::Dem(d, self.dem_args.options()),
             (None, None) => TerrainSource::Embedded,
         };
         let rate = self

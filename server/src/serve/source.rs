@@ -43,9 +43,19 @@ pub enum SourceError {
     },
 }
 
-fn cache_key(spec: &str) -> u64 {
+fn cache_key(spec: &str, opts: &LoadOptions) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
     spec.hash(&mut h);
+    // What changes the heights or the spacing changes the store.
+    for v in [
+        opts.png.scale,
+        opts.png.offset,
+        opts.spacing_x.unwrap_or(-1.0),
+        opts.spacing_y.unwrap_or(-1.0),
+    ] {
+        v.to_bits().hash(&mut h);
+    }
+    opts.png.nodata_value.hash(&mut h);
     crate::store::format::VERSION.hash(&mut h);
     if let Ok(m) = std::fs::metadata(spec) {
         m.len().hash(&mut h);
@@ -56,8 +66,8 @@ fn cache_key(spec: &str) -> u64 {
     h.finish()
 }
 
-/// The cache file for a DEM spec.
-pub fn cached_store_path(cache_dir: &Path, spec: &str) -> PathBuf {
+/// The cache file for a DEM spec read with `opts`.
+pub fn cached_store_path(cache_dir: &Path, spec: &str, opts: &LoadOptions) -> PathBuf {
     let stem: String = spec
         .rsplit('/')
         .next()
@@ -66,7 +76,7 @@ pub fn cached_store_path(cache_dir: &Path, spec: &str) -> PathBuf {
         .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
         .take(40)
         .collect();
-    cache_dir.join(format!("{stem}-{:016x}.relief", cache_key(spec)))
+    cache_dir.join(format!("{stem}-{:016x}.relief", cache_key(spec, opts)))
 }
 
 /// Fails early, before the server listens, for a store file that is not there.
@@ -89,12 +99,13 @@ fn open(path: &Path) -> Result<Store, SourceError> {
 /// Opens the terrain, building and caching it first if needed. Blocking: call it off the
 /// async runtime.
 pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, SourceError> {
-    let spec = match source {
+    let defaults = LoadOptions::default();
+    let (spec, opts) = match source {
         TerrainSource::Store(p) => return open(p),
-        TerrainSource::Embedded => dem::EMBEDDED_SPEC,
-        TerrainSource::Dem(s) => s.as_str(),
+        TerrainSource::Embedded => (dem::EMBEDDED_SPEC, &defaults),
+        TerrainSource::Dem(s, o) => (s.as_str(), o),
     };
-    let path = cached_store_path(cache_dir, spec);
+    let path = cached_store_path(cache_dir, spec, opts);
     if path.exists() {
         match open(&path) {
             Ok(s) => {
@@ -116,13 +127,7 @@ pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, S
     })?;
     let d = match source {
         TerrainSource::Embedded => dem::embedded_default()?,
-        _ => dem::load(
-            spec,
-            &LoadOptions {
-                progress: true,
-                ..LoadOptions::default()
-            },
-        )?,
+        _ => dem::load(spec, opts)?,
     };
     tracing::info!(
         "building the store for {spec} ({}x{} samples) into {}",
@@ -147,7 +152,7 @@ mod tests {
     fn the_embedded_terrain_is_built_once_then_reused() {
         let dir = tempfile::tempdir().unwrap();
         let a = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
-        let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC);
+        let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC, &LoadOptions::default());
         let before = std::fs::metadata(&path).unwrap().modified().unwrap();
         let b = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
         assert_eq!(a.terrain_id(), b.terrain_id());
@@ -160,7 +165,7 @@ mod tests {
     #[test]
     fn a_corrupt_cache_entry_is_rebuilt() {
         let dir = tempfile::tempdir().unwrap();
-        let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC);
+        let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC, &LoadOptions::default());
         std::fs::write(&path, b"not a store").unwrap();
         let s = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
         assert_eq!(s.geometry().shape.width(), 257);
