@@ -213,14 +213,12 @@ impl TileState {
     }
 
     /// How deep skirts hang under a tile of `level`, metres (`None` unless the session draws
-    /// skirts): Cesium's five times the level's largest error, but of the level above. A skirt
-    /// must close the gap to a coarser neighbour (one level up in a restricted selection),
-    /// which that neighbour's error bounds; and the honest error of the full-resolution level
-    /// is 0, so its own would hang no skirt at all (the crack test on 16-cell tiles saw the
-    /// holes).
+    /// skirts): [`TileSetInfo::skirt_height`], Cesium's five times a level's largest error
+    /// taken from the level above (the crack test on 16-cell tiles saw holes with the level's
+    /// own).
     pub fn skirt_depth(&self, level: u8) -> Option<f32> {
         (self.params.crack == CrackMode::Skirts)
-            .then(|| self.info.skirt_height(level.saturating_sub(1)))
+            .then(|| self.info.skirt_height(level))
     }
 
     /// Height of the active tiles' surface over world `x`, `y`, metres (`None` off them).

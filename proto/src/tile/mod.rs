@@ -315,12 +315,14 @@ impl TileSetInfo {
         Ok(s)
     }
 
-    /// How far skirts hang below tiles of `level`, metres (Cesium's rule: five times the
-    /// level's largest geometric error).
+    /// How far skirts hang below tiles of `level`, metres: Cesium's rule of five times a
+    /// level's largest geometric error, taken from the level above (the coarser neighbour a
+    /// tile may meet bounds the gap to it), since the finest level's own error is only the
+    /// height quantisation and would hang no skirt at all.
     pub fn skirt_height(&self, level: u8) -> f32 {
         5.0 * self
             .level_errors
-            .get(level as usize)
+            .get(level.saturating_sub(1) as usize)
             .copied()
             .unwrap_or(0.0)
     }

@@ -58,7 +58,7 @@ pub async fn tileset(State(state): State<Arc<AppState>>) -> Result<Response, Api
         "levels": levels,
         "tiles": "/v1/tiles/{z}/{x}/{y}",
         "crack": ["patches", "skirts", "none"],
-        "skirt_height_rule": "5 x the level's max_error_m",
+        "skirt_height_rule": "5 x max_error_m of the level above (level 0: its own)",
         "protocol_version": relief_proto::msg::PROTOCOL_VERSION,
     }))
     .into_response())
