@@ -63,53 +63,54 @@ enum Command {
 enum BenchCommand {
     /// Fly a camera path through the vertex stream in process and report its figures.
     Lod {
-        /// The DEM to fly over (same forms as `build`'s input).
-        #[arg(long)]
-        dem: String,
-        /// Which path: `standard` (60 s loop, 100-300 m above ground) or `stress` (faster, lower).
-        #[arg(long, default_value = "standard")]
-        path: PathKind,
-        /// Screen-space error threshold in pixels.
-        #[arg(long, default_value_t = 1.0)]
-        tau: f32,
-        /// Measure pixel error on every k-th frame [default: every frame on small grids, fewer
-        /// on large ones, never fewer than 60 frames].
-        #[arg(long)]
-        px_every: Option<usize>,
-        /// Print one JSON object instead of a table.
-        #[arg(long)]
-        json: bool,
         #[command(flatten)]
-        dem_args: DemArgs,
+        run: BenchArgs,
     },
     /// Fly a camera path through the tile stream in process and report its figures: pixel
     /// error, triangles, bytes, update cost, patches against skirts, restriction, pops.
     Tiles {
-        /// The DEM to fly over (same forms as `build`'s input).
-        #[arg(long)]
-        dem: String,
-        /// Which path: `standard` (60 s loop, 100-300 m above ground) or `stress` (faster, lower).
-        #[arg(long, default_value = "standard")]
-        path: PathKind,
+        #[command(flatten)]
+        run: BenchArgs,
         /// What tiles carry against cracks: `patches` (paper 001), `skirts` (the baseline) or
         /// `none`.
         #[arg(long, default_value = "patches")]
         crack: Crack,
-        /// Screen-space error threshold in pixels.
-        #[arg(long, default_value_t = 1.0)]
-        tau: f32,
         /// Cells per tile side (a power of two from 2 to 256).
         #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
         tile_size: u32,
-        /// Measure pixel error on every k-th frame [default: never fewer than 60 frames].
-        #[arg(long)]
-        px_every: Option<usize>,
-        /// Print one JSON object instead of a table.
-        #[arg(long)]
-        json: bool,
-        #[command(flatten)]
-        dem_args: DemArgs,
     },
+}
+
+/// What both benchmarks take.
+#[derive(clap::Args)]
+struct BenchArgs {
+    /// The DEM to fly over (same forms as `build`'s input).
+    #[arg(long)]
+    dem: String,
+    /// Which path: `standard` (60 s loop, 100-300 m above ground) or `stress` (faster, lower).
+    #[arg(long, default_value = "standard")]
+    path: PathKind,
+    /// Screen-space error threshold in pixels.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    tau: f32,
+    /// Measure pixel error on every k-th frame [default: every frame on small grids, fewer
+    /// on large ones, never fewer than 60 frames].
+    #[arg(long)]
+    px_every: Option<usize>,
+    /// Print one JSON object instead of a table.
+    #[arg(long)]
+    json: bool,
+    #[command(flatten)]
+    dem_args: DemArgs,
+}
+
+impl BenchArgs {
+    /// Checks tau and loads the DEM.
+    fn load(&self) -> anyhow::Result<crate::dem::Dem> {
+        crate::serve::validate::params(&relief_proto::view::Lens::STANDARD.into(), self.tau, None)
+            .map_err(anyhow::Error::msg)?;
+        self.dem_args.load(&self.dem).context("cannot load the DEM")
+    }
 }
 
 /// Crack strategies on the command line.
@@ -238,56 +239,41 @@ fn run() -> anyhow::Result<()> {
             println!("{}", serde_json::to_string_pretty(&info)?);
         }
         Command::Bench {
-            which:
-                BenchCommand::Lod {
-                    dem,
-                    path,
-                    tau,
-                    px_every,
-                    json,
-                    dem_args,
-                },
+            which: BenchCommand::Lod { run },
         } => {
-            let d = dem_args.load(&dem).context("cannot load the DEM")?;
+            let d = run.load()?;
             let opts = LodBenchOptions {
-                path,
+                path: run.path,
                 params: LodParams {
-                    tau,
+                    tau: run.tau,
                     ..LodParams::default()
                 },
-                px_every,
-                progress: !dem_args.quiet,
+                px_every: run.px_every,
+                progress: !run.dem_args.quiet,
                 ..LodBenchOptions::default()
             };
-            print_report(&lod::run(&d, &opts)?, json)?;
+            print_report(&lod::run(&d, &opts)?, run.json)?;
         }
         Command::Bench {
             which:
                 BenchCommand::Tiles {
-                    dem,
-                    path,
+                    run,
                     crack,
-                    tau,
                     tile_size,
-                    px_every,
-                    json,
-                    dem_args,
                 },
         } => {
             relief_proto::tile::TileShape::new(2, 2, tile_size)?;
-            crate::serve::validate::params(&relief_proto::view::Lens::STANDARD.into(), tau, None)
-                .map_err(anyhow::Error::msg)?;
-            let d = dem_args.load(&dem).context("cannot load the DEM")?;
+            let d = run.load()?;
             let opts = crate::bench::tiles::TileBenchOptions {
-                path,
-                tau,
+                path: run.path,
+                tau: run.tau,
                 crack: crack.into(),
                 tile_size,
-                px_every,
-                progress: !dem_args.quiet,
+                px_every: run.px_every,
+                progress: !run.dem_args.quiet,
                 ..Default::default()
             };
-            print_report(&crate::bench::tiles::run(&d, &opts)?, json)?;
+            print_report(&crate::bench::tiles::run(&d, &opts)?, run.json)?;
         }
     }
     Ok(())

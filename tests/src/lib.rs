@@ -229,3 +229,23 @@ pub fn hello_frame(version: u32) -> Vec<u8> {
 pub fn hello() -> Vec<u8> {
     hello_frame(PROTOCOL_VERSION)
 }
+
+/// Flies `cams` lock-step (each pose answered before the next) in a session opened with
+/// `config`, dropping the connection just before pose `drop_at`; returns the session.
+pub async fn fly(
+    config: relief_client::session::SessionConfig,
+    cams: &[Camera],
+    drop_at: Option<usize>,
+) -> relief_client::session::Session {
+    let mut s = relief_client::session::Session::connect(config)
+        .await
+        .expect("connect");
+    for (i, cam) in cams.iter().enumerate() {
+        if drop_at == Some(i) {
+            s.drop_connection();
+        }
+        let seq = s.send_pose(*cam).await.expect("pose");
+        s.wait_for_pose(seq).await.expect("delta");
+    }
+    s
+}

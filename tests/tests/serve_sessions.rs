@@ -11,17 +11,9 @@ use relief_tests::{TestServer, hello, path};
 use std::collections::BTreeSet;
 use tokio_tungstenite::tungstenite::Message;
 
-/// Flies `cams` lock-step (each pose answered before the next) and returns the session.
+/// Flies `cams` lock-step in a vertex session (see [`relief_tests::fly`]).
 async fn fly(url: &str, cams: &[relief_proto::view::Camera], drop_at: Option<usize>) -> Session {
-    let mut s = Session::connect(SessionConfig::new(url)).await.unwrap();
-    for (i, cam) in cams.iter().enumerate() {
-        if drop_at == Some(i) {
-            s.drop_connection();
-        }
-        let seq = s.send_pose(*cam).await.unwrap();
-        s.wait_for_pose(seq).await.unwrap();
-    }
-    s
+    relief_tests::fly(SessionConfig::new(url), cams, drop_at).await
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]

@@ -10,7 +10,7 @@ use relief_proto::tile::delta::get_varint;
 use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::view::Camera;
 use relief_server::serve::config::Limits;
-use relief_tests::{TestServer, path};
+use relief_tests::{TestServer, fly, path};
 use std::io::Read;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
@@ -22,19 +22,6 @@ fn tiles_config(url: &str, cache: u32, budget: Option<u32>) -> SessionConfig {
     });
     c.budget = budget;
     c
-}
-
-/// Flies `cams` lock-step with `config`, dropping the connection before pose `drop_at`.
-async fn fly(config: SessionConfig, cams: &[Camera], drop_at: Option<usize>) -> Session {
-    let mut s = Session::connect(config).await.unwrap();
-    for (i, cam) in cams.iter().enumerate() {
-        if drop_at == Some(i) {
-            s.drop_connection();
-        }
-        let seq = s.send_pose(*cam).await.unwrap();
-        s.wait_for_pose(seq).await.unwrap();
-    }
-    s
 }
 
 fn active(s: &Session) -> Vec<u32> {

@@ -171,3 +171,31 @@ impl PxAccum {
         }
     }
 }
+
+/// The cost fields of a benchmark report; meanings in the README.
+#[derive(Clone, Debug, Serialize)]
+pub struct CostSummary {
+    /// Server time per pose (update plus delta encoding), median, microseconds.
+    pub update_us_median: f64,
+    /// Same, 99th percentile.
+    pub update_us_p99: f64,
+    /// The same selection or cut computed from scratch for the same pose, median, microseconds.
+    pub scratch_us_median: f64,
+    /// Client time per delta (decode, apply, digest, mesh), median, microseconds.
+    pub client_us_median: f64,
+    /// Same, 99th percentile.
+    pub client_us_p99: f64,
+}
+
+impl CostSummary {
+    /// The summary of per-pose times, microseconds.
+    pub fn of(update: &[f64], scratch: &[f64], client: &[f64]) -> CostSummary {
+        CostSummary {
+            update_us_median: median(update),
+            update_us_p99: quantile(update, 0.99),
+            scratch_us_median: median(scratch),
+            client_us_median: median(client),
+            client_us_p99: quantile(client, 0.99),
+        }
+    }
+}

@@ -7,7 +7,7 @@
 //! geomorphs applied, as a client draws it) is checked against the brute-force oracle and for
 //! cracks, and its pixel error is measured against the DEM (DESIGN.md section 7).
 
-use super::flight::{Flight, PxAccum, PxSummary};
+use super::flight::{CostSummary, Flight, PxAccum, PxSummary};
 use super::stats::{median, quantile};
 use crate::dem::Dem;
 use crate::lod::vertex::session::VertexSession;
@@ -91,16 +91,9 @@ pub struct LodBenchReport {
     pub oracle_mismatches: u64,
     /// Deltas whose digest did not match the mirror's cut.
     pub desyncs: u64,
-    /// Server time per pose (session update plus delta encoding), median, microseconds.
-    pub update_us_median: f64,
-    /// Same, 99th percentile.
-    pub update_us_p99: f64,
-    /// Computing the cut from scratch for the same pose, median, microseconds.
-    pub scratch_us_median: f64,
-    /// Client time per delta (decode, apply, digest, fans), median, microseconds.
-    pub client_us_median: f64,
-    /// Same, 99th percentile.
-    pub client_us_p99: f64,
+    /// Server and client time per pose.
+    #[serde(flatten)]
+    pub cost: CostSummary,
     /// The paper's full top-down pass for the same pose, median, microseconds.
     pub paper_pass_us_median: f64,
     /// Poses where the full pass's cut differed from the session's (must be 0).
@@ -249,11 +242,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         oracle_checks: r.oracle_checks,
         oracle_mismatches: r.oracle_mismatches,
         desyncs: r.desyncs,
-        update_us_median: median(&r.update_us),
-        update_us_p99: quantile(&r.update_us, 0.99),
-        scratch_us_median: median(&r.scratch_us),
-        client_us_median: median(&r.client_us),
-        client_us_p99: quantile(&r.client_us, 0.99),
+        cost: CostSummary::of(&r.update_us, &r.scratch_us, &r.client_us),
         paper_pass_us_median: median(&r.paper_us),
         paper_pass_mismatches: r.paper_mismatches,
         nodes_visited_median: median(&r.visited),

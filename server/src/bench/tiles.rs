@@ -13,7 +13,7 @@
 //! the new tile was drawn before (on the surface of the tiles it replaces) and where it is drawn
 //! now, for the pose's camera.
 
-use super::flight::{Flight, PxAccum, PxSummary};
+use super::flight::{CostSummary, Flight, PxAccum, PxSummary};
 use super::stats::{mean, median, quantile};
 use crate::dem::Dem;
 use crate::lod::measure::Projector;
@@ -100,16 +100,9 @@ pub struct TileBenchReport {
     pub px: PxSummary,
     /// Deltas whose digest did not match the mirror's set.
     pub desyncs: u64,
-    /// Server time per pose (selection, delta, encoding), median, microseconds.
-    pub update_us_median: f64,
-    /// Same, 99th percentile.
-    pub update_us_p99: f64,
-    /// The restricted selection from scratch for the same pose, median, microseconds.
-    pub scratch_us_median: f64,
-    /// Client time per delta (decode, apply, digest, triangles of added tiles), median, us.
-    pub client_us_median: f64,
-    /// Same, 99th percentile.
-    pub client_us_p99: f64,
+    /// Server and client time per pose.
+    #[serde(flatten)]
+    pub cost: CostSummary,
     /// Active tiles, median.
     pub tiles_active_median: f64,
     /// Tiles whose screen error was evaluated per pose, median.
@@ -352,11 +345,7 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         full_res_triangles: 2 * (w as u64 - 1) * (h as u64 - 1),
         px: r.px.summary(&flight),
         desyncs: r.desyncs,
-        update_us_median: median(&r.update_us),
-        update_us_p99: quantile(&r.update_us, 0.99),
-        scratch_us_median: median(&r.scratch_us),
-        client_us_median: median(&r.client_us),
-        client_us_p99: quantile(&r.client_us, 0.99),
+        cost: CostSummary::of(&r.update_us, &r.scratch_us, &r.client_us),
         tiles_active_median: median(&r.active),
         tiles_visited_median: median(&r.visited),
         patch_triangles: patch_all,
