@@ -41,7 +41,8 @@ enum StreamArg {
 enum CrackArg {
     /// Precomputed crack patches, dropped and raised, sent with the tiles.
     Patches,
-    /// Skirts hung from every tile edge, 5x the level's largest error deep (Cesium's rule).
+    /// Skirts hung from every tile edge, 5x the largest error of the level above deep
+    /// (Cesium's rule).
     Skirts,
     /// Nothing (cracks show).
     None,
@@ -218,6 +219,13 @@ enum Command {
         /// later, with that pose's splits still growing.
         #[arg(long, requires = "path")]
         frame: Option<usize>,
+        /// Draw what was streamed for the camera (or path) from this other camera instead,
+        /// x,y,z,yaw,pitch[,fov] (fov: vertical, degrees; default --fov): a diagnostic that
+        /// shows up close what a selection leaves, e.g. its crack patches (seen from the
+        /// selecting camera, a crack is at most about tau pixels; a narrow fov from the same
+        /// eye magnifies it).
+        #[arg(long, allow_hyphen_values = true)]
+        look_from: Option<String>,
         /// Where to write the PNG.
         #[arg(short = 'o', long = "out", default_value = "shot.png")]
         out: PathBuf,
@@ -335,6 +343,7 @@ fn run() -> anyhow::Result<()> {
             camera,
             path,
             frame,
+            look_from,
             out,
             background,
         } => {
@@ -352,10 +361,13 @@ fn run() -> anyhow::Result<()> {
                 background: shot::parse_colour(&background).map_err(anyhow::Error::msg)?,
                 morph: view.morph,
                 dropped_only: view.target.dropped_only(),
+                look_from: look_from
+                    .map(|c| shot::parse_look(&c))
+                    .transpose()
+                    .map_err(anyhow::Error::msg)?,
             };
             let (img, report) = rt.block_on(shot::shot(&opts))?;
-            img.save(&out)
-                .with_context(|| format!("cannot write {}", out.display()))?;
+            shot::save_png(img, &out).with_context(|| format!("cannot write {}", out.display()))?;
             eprintln!(
                 "wrote {} ({}x{}, {} triangles, {} active, adapter {})",
                 out.display(),

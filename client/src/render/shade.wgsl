@@ -66,10 +66,11 @@ fn fs(in: VOut) -> @location(0) vec4<f32> {
     let fog = 1.0 - exp(-length(in.rel) / frame.haze.w);
     c = mix(c, frame.haze.rgb, 0.45 * fog);
     if (frame.misc.w > 0.5) {
-        c = mix(c, vec3<f32>(0.85, 0.10, 0.08), 0.7 * in.crack);
         let d = in.bary / max(fwidth(in.bary), vec3<f32>(1.0e-6));
         let edge = min(min(d.x, d.y), d.z);
         c = mix(vec3<f32>(0.05, 0.05, 0.07), c, smoothstep(0.0, 1.0, edge));
+        // Tinted after the edges: a patch is often thinner than its edge lines.
+        c = mix(c, vec3<f32>(0.95, 0.08, 0.06), 0.85 * in.crack);
     }
     if (frame.light.w > 0.5) {
         c = pow(c, vec3<f32>(1.0 / 2.2));

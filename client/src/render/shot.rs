@@ -46,6 +46,9 @@ pub struct ShotOptions {
     pub morph: MorphStage,
     /// Tile stream: draw the dropped crack patches alone (a diagnostic).
     pub dropped_only: bool,
+    /// Draw from this camera, with this vertical field of view (degrees) if given, instead of
+    /// the one streamed for (a diagnostic: the selection seen up close).
+    pub look_from: Option<(Camera, Option<f32>)>,
 }
 
 /// What a shot drew.
@@ -162,6 +165,11 @@ pub async fn shot(opts: &ShotOptions) -> Result<(image::RgbaImage, ShotReport), 
     let gpu = Gpu::headless()?;
     let lens = opts.session.lens;
     let mut s = stream_to(opts.session.clone(), opts.pose).await?;
+    let mut lens = lens;
+    if let Some((c, fov)) = opts.look_from {
+        s.camera = c;
+        lens.fov_y_deg = fov.unwrap_or(lens.fov_y_deg);
+    }
     let params = FrameParams {
         morph: opts.morph,
         dropped_only: opts.dropped_only,
@@ -182,6 +190,17 @@ pub async fn shot(opts: &ShotOptions) -> Result<(image::RgbaImage, ShotReport), 
     };
     s.session.close().await;
     Ok((img, report))
+}
+
+/// Writes `img` as an RGB PNG (its alpha is always opaque) at the best compression, so that
+/// wireframe screenshots stay small.
+pub fn save_png(img: image::RgbaImage, path: &std::path::Path) -> image::ImageResult<()> {
+    use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+    let file = std::io::BufWriter::new(std::fs::File::create(path)?);
+    let enc = PngEncoder::new_with_quality(file, CompressionType::Best, FilterType::Adaptive);
+    image::DynamicImage::ImageRgba8(img)
+        .into_rgb8()
+        .write_with_encoder(enc)
 }
 
 /// Parses `WxH` (each 16 to 8192 pixels).
@@ -228,6 +247,20 @@ pub fn parse_camera(s: &str) -> Result<Camera, String> {
     }
 }
 
+/// Parses `x,y,z,yaw,pitch[,fov]`: a camera as [`parse_camera`] reads it, and a vertical field
+/// of view in degrees (1 to 120).
+pub fn parse_look(s: &str) -> Result<(Camera, Option<f32>), String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 6 {
+        return parse_camera(s).map(|c| (c, None));
+    }
+    let cam = parse_camera(&parts[..5].join(","))?;
+    match parts[5].trim().parse::<f32>() {
+        Ok(f) if (1.0..=120.0).contains(&f) => Ok((cam, Some(f))),
+        _ => Err(format!("{s:?}: the field of view must be 1 to 120 degrees")),
+    }
+}
+
 /// Parses a colour: `#rrggbb` or `r,g,b` (0-255).
 pub fn parse_colour(s: &str) -> Result<[u8; 3], String> {
     let bad = || format!("colour {s:?} is not #rrggbb or r,g,b");
@@ -262,6 +295,9 @@ mod tests {
         assert!(parse_camera("1,2,3,4").is_err());
         assert!(parse_camera("1,2,3,4,95").is_err());
         assert!(parse_camera("1,2,nan,4,5").is_err());
+        assert_eq!(parse_look("1,2,3,4,5").unwrap().1, None);
+        assert_eq!(parse_look("1,2,3,4,5,10").unwrap().1, Some(10.0));
+        assert!(parse_look("1,2,3,4,5,0").is_err());
         assert_eq!(parse_colour("#ff00fe"), Ok([255, 0, 254]));
         assert_eq!(parse_colour("1, 2,3"), Ok([1, 2, 3]));
         assert!(parse_colour("#ff00").is_err());

@@ -217,8 +217,7 @@ impl TileState {
     /// taken from the level above (the crack test on 16-cell tiles saw holes with the level's
     /// own).
     pub fn skirt_depth(&self, level: u8) -> Option<f32> {
-        (self.params.crack == CrackMode::Skirts)
-            .then(|| self.info.skirt_height(level))
+        (self.params.crack == CrackMode::Skirts).then(|| self.info.skirt_height(level))
     }
 
     /// Height of the active tiles' surface over world `x`, `y`, metres (`None` off them).
