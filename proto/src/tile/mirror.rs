@@ -69,7 +69,7 @@ pub struct TileMirror {
     cache: TileCache,
     /// Every held tile's data, by dense index (none in a light mirror).
     tiles: FxHashMap<u32, TileData>,
-    /// Keep the decoded tiles (a light mirror only checks them and keeps the bookkeeping).
+    /// Decode and keep the tiles (a light mirror keeps only the bookkeeping).
     keep: bool,
 }
 
@@ -85,8 +85,9 @@ impl TileMirror {
         }
     }
 
-    /// A mirror that decodes and checks every tile and digest but keeps no tile data: what a
-    /// load generator needs, in a few bytes per tile.
+    /// A mirror that checks every delta's layout, the cache bookkeeping and every digest, but
+    /// neither decodes nor keeps tile bodies: what a load generator needs to drive thousands of
+    /// sessions from one core (viewers and tests decode every body).
     pub fn light(shape: TileShape, params: TileStreamParams) -> TileMirror {
         TileMirror {
             keep: false,
@@ -116,7 +117,7 @@ impl TileMirror {
         let d = TileDelta::decode(&wire.body, self.shape.tile_count())?;
         let mut decoded = Vec::with_capacity(d.added.len());
         for a in &d.added {
-            let Some(b) = &a.body else {
+            let Some(b) = a.body.as_ref().filter(|_| self.keep) else {
                 decoded.push(None);
                 continue;
             };
@@ -142,14 +143,11 @@ impl TileMirror {
         let added: Vec<u32> = d.added.iter().map(|a| a.tile).collect();
         let evicted = self
             .cache
-            .apply(&d.removed, &added, |i| decoded[i].is_some())?;
-        let mut sent = 0;
+            .apply(&d.removed, &added, |i| d.added[i].body.is_some())?;
+        let sent = d.added.iter().filter(|a| a.body.is_some()).count();
         for (i, data) in decoded.into_iter().enumerate() {
             if let Some(data) = data {
-                if self.keep {
-                    self.tiles.insert(added[i], data);
-                }
-                sent += 1;
+                self.tiles.insert(added[i], data);
             }
         }
         for t in &evicted {
