@@ -23,7 +23,11 @@ pub(super) fn decode(bytes: &[u8]) -> Result<ServerMsg, ClientError> {
 }
 
 async fn dial(url: &str) -> Result<Ws, String> {
+    // tungstenite zero-fills up to a read buffer's worth of spare capacity before every read:
+    // 16 KiB instead of the default 128 KiB cut a 2,000-session load client's CPU by a third
+    // (it was 39 % memset).
     let cfg = WebSocketConfig::default()
+        .read_buffer_size(16 * 1024)
         .max_message_size(Some(codec::HARD_LIMIT))
         .max_frame_size(Some(codec::HARD_LIMIT));
     tokio_tungstenite::connect_async_with_config(url, Some(cfg), true)
