@@ -305,7 +305,39 @@ enum Command {
     },
 }
 
+/// Keeps headless commands away from the windowing system.
+mod headless_env {
+    #![allow(unsafe_code)] // Reason: `std::env::set_var` is unsafe in Rust 2024; it is called once, first thing in `main`, before any thread exists.
+
+    /// Turns off Mesa's implicit Vulkan layer `VK_LAYER_MESA_device_select` for a command that
+    /// draws offscreen. When an instance enables the Wayland surface extension (wgpu enables every
+    /// surface extension the driver has), the layer calls `wl_display_connect` while enumerating
+    /// GPUs, and libwayland prints `error: XDG_RUNTIME_DIR is invalid or not set in the
+    /// environment.` on a machine with no session (ssh, containers, CI). The layer only orders GPUs
+    /// by the display's default; wgpu picks the adapter by power preference anyway. A user who
+    /// chose a GPU with `MESA_VK_DEVICE_SELECT`, or set `NODEVICE_SELECT`, is left alone.
+    ///
+    /// Must be called before any thread is started (the tokio runtime, wgpu).
+    pub fn quiet_vulkan_layers() {
+        if std::env::var_os("MESA_VK_DEVICE_SELECT").is_some()
+            || std::env::var_os("NODEVICE_SELECT").is_some()
+        {
+            return;
+        }
+        // SAFETY: called from `main` before the tokio runtime or any other thread exists, so
+        // nothing reads the environment concurrently.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}
+
 fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    if matches!(
+        cli.command,
+        Command::Shot { .. } | Command::RenderBench { .. }
+    ) {
+        headless_env::quiet_vulkan_layers();
+    }
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("RELIEF_LOG")
@@ -314,7 +346,7 @@ fn main() -> std::process::ExitCode {
         .with_writer(std::io::stderr)
         .with_ansi(relief_proto::errors::log_colour())
         .init();
-    match run() {
+    match run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", relief_proto::errors::one_line(e.as_ref()));
@@ -333,11 +365,11 @@ fn print_json(report: &impl serde::Serialize, compact: bool) -> anyhow::Result<(
     Ok(())
 }
 
-fn run() -> anyhow::Result<()> {
+fn run(cli: Cli) -> anyhow::Result<()> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;
-    match Cli::parse().command {
+    match cli.command {
         Command::Shot {
             view,
             camera,
