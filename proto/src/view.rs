@@ -89,6 +89,15 @@ pub struct Aabb {
     pub max: Vec3,
 }
 
+impl std::ops::Sub<Vec3> for &Aabb {
+    type Output = (Vec3, Vec3);
+
+    /// The box's corners relative to a point.
+    fn sub(self, p: Vec3) -> (Vec3, Vec3) {
+        (self.min - p, self.max - p)
+    }
+}
+
 /// A camera and lens prepared for many screen-error evaluations.
 #[derive(Clone, Debug)]
 pub struct ViewState {
@@ -139,13 +148,11 @@ impl ViewState {
 
     /// Whether any part of `b` may lie inside the frustum (conservative).
     pub fn intersects(&self, b: &Aabb) -> bool {
-        self.box_view(b).margin >= 0.0
+        self.margin(b - self.eye) >= 0.0
     }
 
-    /// Where box `b` lies relative to this view: what the screen error and its bounds need.
-    pub fn box_view(&self, b: &Aabb) -> BoxView {
-        let rel_min = b.min - self.eye;
-        let rel_max = b.max - self.eye;
+    /// [`BoxView::margin`] of a box given relative to the eye.
+    fn margin(&self, (rel_min, rel_max): (Vec3, Vec3)) -> f32 {
         let mut margin = f32::INFINITY;
         for (i, n) in self.planes.iter().enumerate() {
             // The box corner furthest along the plane normal.
@@ -153,6 +160,13 @@ impl ViewState {
             let offset = if i == 4 { self.near } else { 0.0 };
             margin = margin.min(n.dot(p) - offset);
         }
+        margin
+    }
+
+    /// Where box `b` lies relative to this view: what the screen error and its bounds need.
+    pub fn box_view(&self, b: &Aabb) -> BoxView {
+        let (rel_min, rel_max) = b - self.eye;
+        let margin = self.margin((rel_min, rel_max));
         // Nearest depth along the view axis over the box.
         let near_corner = Vec3::select(self.forward.cmpge(Vec3::ZERO), rel_min, rel_max);
         let far = rel_min.abs().max(rel_max.abs());

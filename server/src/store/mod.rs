@@ -196,6 +196,20 @@ pub struct Store {
     tiles: TileShape,
     /// What tile clients are told of the pyramid.
     tile_info: TileSetInfo,
+    /// Each tile's world box, error and size, by dense index, computed once at open so that a
+    /// selection reads one record per tile.
+    tile_bounds: Vec<TileBounds>,
+}
+
+/// A tile's box, geometric error and size in world metres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TileBounds {
+    /// Its samples' extent and height range.
+    pub aabb: relief_proto::view::Aabb,
+    /// Geometric error, metres (saturated).
+    pub error: f32,
+    /// Ground metres across its longer side.
+    pub size: f32,
 }
 
 impl Store {
@@ -264,6 +278,7 @@ impl Store {
                 level_errors: vec![0.0; tiles.depth() as usize + 1],
             },
             tiles,
+            tile_bounds: Vec::new(),
         };
         let data_len = store.section(7).len() as u64;
         let mut level_errors = vec![0f32; store.tiles.depth() as usize + 1];
@@ -278,6 +293,7 @@ impl Store {
             level_errors[level] = level_errors[level].max(r.error);
         }
         store.tile_info.level_errors = level_errors;
+        store.tile_bounds = store.compute_tile_bounds();
         Ok(store)
     }
 
@@ -335,6 +351,33 @@ impl Store {
     pub fn err_code(&self, node: NodeId) -> u8 {
         let i = self.geom.shape.index(node) as usize;
         self.err().get(i).copied().unwrap_or(0)
+    }
+
+    fn compute_tile_bounds(&self) -> Vec<TileBounds> {
+        let (frame, q) = (self.geom.frame, self.geom.z_quantum);
+        self.tile_records()
+            .iter()
+            .enumerate()
+            .map(|(i, r)| {
+                let t = self.tiles.tile(i as u32).unwrap_or(NodeId::ROOT);
+                let sp = self.tiles.span(t);
+                let (x0, y1) = frame.to_world(sp.cols.0 as f32, sp.rows.0 as f32);
+                let (x1, y0) = frame.to_world(sp.cols.1 as f32, sp.rows.1 as f32);
+                TileBounds {
+                    aabb: relief_proto::view::Aabb {
+                        min: glam::Vec3::new(x0, y0, r.zmin as f32 * q),
+                        max: glam::Vec3::new(x1, y1, r.zmax as f32 * q),
+                    },
+                    error: r.error,
+                    size: (x1 - x0).max(y1 - y0),
+                }
+            })
+            .collect()
+    }
+
+    /// Each tile's world box, error and size, by dense index.
+    pub fn tile_bounds(&self) -> &[TileBounds] {
+        &self.tile_bounds
     }
 
     /// The tile pyramid's shape.

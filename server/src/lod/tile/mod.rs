@@ -20,11 +20,9 @@ pub mod session;
 #[cfg(test)]
 mod tests;
 
-use crate::store::Store;
 use crate::store::tiles::TileRecord;
-use glam::Vec3;
-use relief_proto::tile::{TileId, TileShape};
-use relief_proto::tree::WorldFrame;
+use crate::store::{Store, TileBounds};
+use relief_proto::tile::TileShape;
 use relief_proto::view::{Aabb, ViewState};
 
 /// The engine over one store's tile pyramid; cheap to create, shared by all sessions.
@@ -35,22 +33,18 @@ pub struct TileEngine<'a> {
     shape: &'a TileShape,
     /// Tile records by dense index.
     records: &'a [TileRecord],
-    /// Grid-to-world mapping.
-    frame: WorldFrame,
-    /// Metres per height quantum.
-    quantum: f32,
+    /// Tile boxes, errors and sizes by dense index.
+    bounds: &'a [TileBounds],
 }
 
 impl<'a> TileEngine<'a> {
     /// The engine over `store`.
     pub fn new(store: &'a Store) -> TileEngine<'a> {
-        let g = store.geometry();
         TileEngine {
             store,
             shape: store.tile_shape(),
             records: store.tile_records(),
-            frame: g.frame,
-            quantum: g.z_quantum,
+            bounds: store.tile_bounds(),
         }
     }
 
@@ -69,23 +63,14 @@ impl<'a> TileEngine<'a> {
         &self.records[index as usize]
     }
 
-    /// The box of tile `t` (dense index `index`): its samples' extent and height range.
-    pub fn tile_box(&self, t: TileId, index: u32) -> Aabb {
-        let sp = self.shape.span(t);
-        let r = self.record(index);
-        let (x0, y1) = self.frame.to_world(sp.cols.0 as f32, sp.rows.0 as f32);
-        let (x1, y0) = self.frame.to_world(sp.cols.1 as f32, sp.rows.1 as f32);
-        Aabb {
-            min: Vec3::new(x0, y0, r.zmin as f32 * self.quantum),
-            max: Vec3::new(x1, y1, r.zmax as f32 * self.quantum),
-        }
+    /// The box of tile `index`: its samples' extent and height range.
+    pub fn tile_box(&self, index: u32) -> Aabb {
+        self.bounds[index as usize].aabb
     }
 
-    /// Ground metres across tile `t`'s longer side.
-    pub fn tile_size_m(&self, t: TileId) -> f32 {
-        let sp = self.shape.span(t);
-        ((sp.cols.1 - sp.cols.0) as f32 * self.frame.dx)
-            .max((sp.rows.1 - sp.rows.0) as f32 * self.frame.dy)
+    /// Ground metres across tile `index`'s longer side.
+    pub fn tile_size_m(&self, index: u32) -> f32 {
+        self.bounds[index as usize].size
     }
 
     /// Distance from the eye to the nearest point of `b`, at least the near plane.
@@ -94,16 +79,12 @@ impl<'a> TileEngine<'a> {
         (e.clamp(b.min, b.max) - e).length().max(view.near())
     }
 
-    /// Screen-space error of tile `t` in pixels: Cesium's rule, 0 outside the frustum.
-    pub fn screen_error(&self, view: &ViewState, t: TileId, index: u32) -> f32 {
-        let err = self.record(index).error;
-        if err <= 0.0 {
+    /// Screen-space error of tile `index` in pixels: Cesium's rule, 0 outside the frustum.
+    pub fn screen_error(&self, view: &ViewState, index: u32) -> f32 {
+        let b = &self.bounds[index as usize];
+        if b.error <= 0.0 || !view.intersects(&b.aabb) {
             return 0.0;
         }
-        let b = self.tile_box(t, index);
-        if !view.intersects(&b) {
-            return 0.0;
-        }
-        err * view.focal() / Self::distance(view, &b)
+        b.error * view.focal() / Self::distance(view, &b.aabb)
     }
 }

@@ -78,7 +78,7 @@ impl TileEngine<'_> {
         while let Some(t) = stack.pop() {
             let i = shape.index(t);
             let split = !shape.is_leaf(t) && {
-                let e = self.screen_error(view, t, i);
+                let e = self.screen_error(view, i);
                 sel.stats.visited += 1;
                 if keep_sse {
                     sel.sse.push((i, e));
@@ -93,7 +93,7 @@ impl TileEngine<'_> {
                 // tile's size.
                 let d = self.record(shape.index(p)).error * focal_over_tau;
                 sel.stats.ratio_tiles += 1;
-                if d > 3.0 * self.tile_size_m(t) {
+                if d > 3.0 * self.tile_size_m(i) {
                     sel.stats.ratio_gt_3 += 1;
                 }
             }
