@@ -16,6 +16,13 @@ pub fn one_line(e: &(dyn std::error::Error + 'static)) -> String {
     line
 }
 
+/// Whether the command lines' logs on stderr may carry ANSI colours: only on a terminal, and
+/// not when `NO_COLOR` is set to anything non-empty (<https://no-color.org>).
+pub fn log_colour() -> bool {
+    use std::io::IsTerminal;
+    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -37,11 +44,4 @@ mod tests {
             "cannot start: cannot open x.relief: no such file"
         );
     }
-}
-
-/// Whether the command lines' logs on stderr may carry ANSI colours: only on a terminal, and
-/// not when `NO_COLOR` is set to anything non-empty (<https://no-color.org>).
-pub fn log_colour() -> bool {
-    use std::io::IsTerminal;
-    std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
 }
