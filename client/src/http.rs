@@ -6,12 +6,22 @@ use hyper::body::Bytes;
 use hyper_util::rt::TokioIo;
 use tokio::net::TcpStream;
 
+use crate::server_url::{ServerUrl, UrlError, io_reason};
+
 /// A request that failed.
 #[derive(Debug, thiserror::Error)]
 pub enum HttpError {
-    /// The URL is not `http://host:port/...` (or `ws://`, which is mapped to `http://`).
-    #[error("unsupported URL {0}: expected http://HOST:PORT/... or ws://HOST:PORT/...")]
-    Url(String),
+    /// The server's URL is not one this client takes.
+    #[error(transparent)]
+    Url(#[from] UrlError),
+    /// No TCP connection to the server.
+    #[error("cannot connect to {authority}: {reason}")]
+    Connect {
+        /// `host:port`.
+        authority: String,
+        /// Why, in words.
+        reason: String,
+    },
     /// Connecting, sending or reading failed.
     #[error("request to {url} failed: {message}")]
     Io {
@@ -32,25 +42,29 @@ pub enum HttpError {
     },
 }
 
-/// `(authority, path)` of an `http://` or `ws://` URL.
+/// `(authority, path)` of a URL on the server's HTTP base (`http://host:port/...`, as
+/// [`ServerUrl::base`] makes them).
 pub fn split_url(url: &str) -> Result<(String, String), HttpError> {
+    let bad = |why: &str| UrlError {
+        input: url.to_string(),
+        why: why.to_string(),
+    };
     let rest = url
         .strip_prefix("http://")
-        .or_else(|| url.strip_prefix("ws://"))
-        .ok_or_else(|| HttpError::Url(url.to_string()))?;
+        .ok_or_else(|| bad("not an http:// URL"))?;
     let (authority, path) = match rest.find('/') {
         Some(i) => (&rest[..i], &rest[i..]),
         None => (rest, "/"),
     };
     if authority.is_empty() {
-        return Err(HttpError::Url(url.to_string()));
+        return Err(bad("no host").into());
     }
     Ok((authority.to_string(), path.to_string()))
 }
 
-/// The HTTP base (`http://host:port`) of a stream URL such as `ws://host:port/v1/stream`.
+/// The HTTP base (`http://host:port`) of a server URL in any form [`ServerUrl`] takes.
 pub fn base_of(url: &str) -> Result<String, HttpError> {
-    Ok(format!("http://{}", split_url(url)?.0))
+    Ok(ServerUrl::parse(url)?.base())
 }
 
 /// Sends one request and returns the body of a 2xx answer.
@@ -67,7 +81,10 @@ pub async fn request(
     };
     let tcp = TcpStream::connect(&authority)
         .await
-        .map_err(|e| io_err(&e))?;
+        .map_err(|e| HttpError::Connect {
+            authority: authority.clone(),
+            reason: io_reason(&e),
+        })?;
     let (mut send, conn) = hyper::client::conn::http1::handshake(TokioIo::new(tcp))
         .await
         .map_err(|e| io_err(&e))?;
@@ -75,7 +92,7 @@ pub async fn request(
     let req = hyper::Request::builder()
         .method(method)
         .uri(path)
-        .header(hyper::header::HOST, authority)
+        .header(hyper::header::HOST, &authority)
         .header(hyper::header::CONTENT_TYPE, content_type)
         .body(Full::new(Bytes::from(body)))
         .map_err(|e| io_err(&e))?;
@@ -91,10 +108,27 @@ pub async fn request(
         return Err(HttpError::Status {
             url: url.to_string(),
             status: status.as_u16(),
-            body: String::from_utf8_lossy(&bytes).into_owned(),
+            body: summary(&String::from_utf8_lossy(&bytes), status.as_u16()),
         });
     }
     Ok(bytes)
+}
+
+/// An error body in one line: the server's own message (its first line, at most 200
+/// characters), or, for an HTML page or a 404, a hint that this may be some other server.
+fn summary(body: &str, status: u16) -> String {
+    let line = body.trim().lines().next().unwrap_or("").trim();
+    let other = "is it a relief-server?";
+    if line.starts_with('<') {
+        return format!("an HTML page; {other}");
+    }
+    let line: String = line.chars().take(200).collect();
+    match (line.is_empty(), status == 404) {
+        (true, true) => other.to_string(),
+        (true, false) => "(no message)".to_string(),
+        (false, true) => format!("{line}; {other}"),
+        (false, false) => line,
+    }
 }
 
 /// `GET url`, parsed as JSON.
@@ -131,12 +165,27 @@ mod tests {
     #[test]
     fn urls_split() {
         assert_eq!(
-            split_url("ws://127.0.0.1:8080/v1/stream").unwrap(),
-            ("127.0.0.1:8080".into(), "/v1/stream".into())
+            split_url("http://127.0.0.1:8080/v1/terrain").unwrap(),
+            ("127.0.0.1:8080".into(), "/v1/terrain".into())
         );
         assert_eq!(base_of("ws://h:1/v1/stream").unwrap(), "http://h:1");
+        assert_eq!(base_of("http://h:1").unwrap(), "http://h:1");
         assert_eq!(split_url("http://h:2").unwrap().1, "/");
         assert!(split_url("wss://h/x").is_err());
+        assert!(split_url("ws://h:1/x").is_err());
         assert!(split_url("http:///x").is_err());
+    }
+
+    #[test]
+    fn error_bodies_fit_one_line() {
+        assert_eq!(
+            summary("<!DOCTYPE HTML>\n<html>", 404),
+            "an HTML page; is it a relief-server?"
+        );
+        assert_eq!(summary("", 404), "is it a relief-server?");
+        assert_eq!(
+            summary("tau must be positive\n", 400),
+            "tau must be positive"
+        );
     }
 }

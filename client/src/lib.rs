@@ -3,6 +3,8 @@
 //! - [`session`]: a streaming session: hello, poses, deltas applied to a mirror of the cut and
 //!   its fan mesh, digests checked, acknowledgements, and reconnect-and-resume on its own.
 //! - [`http`]: a small HTTP/1.1 client for the server's HTTP endpoints.
+//! - [`server_url`]: `--server` parsed once: the stream URL and the HTTP base, and errors in
+//!   words.
 //! - [`flight`]: one session flown along camera poses, recording latency and bytes over time.
 //! - [`fly`]: `relief-client fly`: one flight along a camera path, with its figures.
 //! - [`load`]: `relief-client load`: many sessions at once, with reports, plots and sweeps.
@@ -19,6 +21,7 @@ pub mod http;
 pub mod load;
 pub mod plot;
 pub mod render;
+pub mod server_url;
 pub mod session;
 pub mod viewer;
 

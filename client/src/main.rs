@@ -66,7 +66,8 @@ fn parse_cache(s: &str) -> Result<u32, String> {
 /// names.
 #[derive(clap::Args)]
 struct ServerArgs {
-    /// The stream's URL.
+    /// The server: ws://HOST:PORT or http://HOST:PORT, with or without the stream's path
+    /// /v1/stream (a bare HOST:PORT works too).
     #[arg(
         long,
         env = "RELIEF_SERVER",
@@ -112,10 +113,11 @@ impl ServerArgs {
                 },
             }),
         };
+        let url = relief_client::server_url::ServerUrl::parse(&self.server)?;
         Ok(SessionConfig {
             tau: self.tau,
             stream,
-            ..SessionConfig::new(&self.server)
+            ..SessionConfig::new(&url.stream())
         })
     }
 

@@ -22,7 +22,51 @@ pub(super) fn decode(bytes: &[u8]) -> Result<ServerMsg, ClientError> {
     codec::decode(bytes, codec::HARD_LIMIT).map_err(|e| ClientError::Protocol(e.to_string()))
 }
 
-async fn dial(url: &str) -> Result<Ws, String> {
+/// Why a dial failed, in words, and whether trying again could help.
+struct DialError {
+    /// The reason, in the user's terms.
+    text: String,
+    /// The server answered, but not as a Relief stream (or the URL is unusable): retrying
+    /// cannot help, so the session fails at once.
+    permanent: bool,
+}
+
+impl From<tokio_tungstenite::tungstenite::Error> for DialError {
+    fn from(e: tokio_tungstenite::tungstenite::Error) -> DialError {
+        use tokio_tungstenite::tungstenite::Error as E;
+        match e {
+            E::Io(io) => DialError {
+                text: crate::server_url::io_reason(&io),
+                permanent: false,
+            },
+            E::Http(resp) if resp.status().is_client_error() => DialError {
+                text: format!(
+                    "the server answered {} to the WebSocket upgrade: there is no Relief stream at this URL; is it a relief-server?",
+                    resp.status()
+                ),
+                permanent: true,
+            },
+            E::Http(resp) => DialError {
+                text: format!("the server answered {}", resp.status()),
+                permanent: false,
+            },
+            E::Url(u) => DialError {
+                text: u.to_string(),
+                permanent: true,
+            },
+            E::Protocol(p) => DialError {
+                text: format!("not a WebSocket server ({p}); is it a relief-server?"),
+                permanent: true,
+            },
+            other => DialError {
+                text: other.to_string(),
+                permanent: false,
+            },
+        }
+    }
+}
+
+async fn dial(url: &str) -> Result<Ws, DialError> {
     // tungstenite zero-fills up to a read buffer's worth of spare capacity before every read:
     // 16 KiB instead of the default 128 KiB cut a 2,000-session load client's CPU by a third
     // (it was 39 % memset).
@@ -33,7 +77,7 @@ async fn dial(url: &str) -> Result<Ws, String> {
     tokio_tungstenite::connect_async_with_config(url, Some(cfg), true)
         .await
         .map(|(ws, _)| ws)
-        .map_err(|e| e.to_string())
+        .map_err(DialError::from)
 }
 
 /// One step of the handshake's outcome.
@@ -47,7 +91,13 @@ enum Opened {
 async fn handshake(config: &SessionConfig, resume: Option<Resume>) -> Result<Opened, ClientError> {
     let mut ws = match dial(&config.url).await {
         Ok(ws) => ws,
-        Err(e) => return Ok(Opened::Retry(e)),
+        Err(e) if e.permanent => {
+            return Err(ClientError::Connect {
+                url: config.url.clone(),
+                last: e.text,
+            });
+        }
+        Err(e) => return Ok(Opened::Retry(e.text)),
     };
     let hello = ClientMsg::Hello(Hello {
         version: PROTOCOL_VERSION,
