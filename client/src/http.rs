@@ -115,7 +115,7 @@ pub async fn request(
 }
 
 /// An error body in one line: the server's own message (its first line, at most 200
-/// characters), or, for an HTML page or a 404, a hint that this may be some other server.
+/// characters), or, for an HTML page or an empty 404, a hint that this may be some other server.
 fn summary(body: &str, status: u16) -> String {
     let line = body.trim().lines().next().unwrap_or("").trim();
     let other = "is it a relief-server?";
@@ -126,8 +126,7 @@ fn summary(body: &str, status: u16) -> String {
     match (line.is_empty(), status == 404) {
         (true, true) => other.to_string(),
         (true, false) => "(no message)".to_string(),
-        (false, true) => format!("{line}; {other}"),
-        (false, false) => line,
+        (false, _) => line,
     }
 }
 

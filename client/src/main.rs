@@ -401,6 +401,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                     .map_err(anyhow::Error::msg)?,
             };
             let (img, report) = rt.block_on(shot::shot(&opts))?;
+            for w in &report.warnings {
+                eprintln!("warning: {w}");
+            }
             shot::save_png(img, &out).with_context(|| format!("cannot write {}", out.display()))?;
             eprintln!(
                 "wrote {} ({}x{}, {} triangles, {} active, adapter {})",

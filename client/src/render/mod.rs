@@ -14,6 +14,7 @@
 //! - `pass`: what both passes share: depth buffer, frame buffer, shading (`shade.wgsl`).
 //! - [`offscreen`]: a target without a window, and reading GPU memory back.
 //! - [`shot`]: `relief-client shot`: one frame to a PNG.
+//! - [`shot_check`]: why a shot shows no terrain (under the ground, looking away, too far).
 //! - [`bench`]: `relief-client render-bench`: the client's cost per delta and frame rate.
 
 pub mod bench;
@@ -25,6 +26,7 @@ mod pass;
 pub mod renderer;
 pub mod scene;
 pub mod shot;
+pub mod shot_check;
 pub mod stream;
 pub mod tile_scene;
 pub mod tiles;

@@ -66,6 +66,8 @@ pub struct ShotReport {
     pub deltas: u64,
     /// Bytes received.
     pub bytes: u64,
+    /// Why the image may show no terrain (empty when it is in view): see [`super::shot_check`].
+    pub warnings: Vec<String>,
 }
 
 /// Why a shot failed.
@@ -176,6 +178,17 @@ pub async fn shot(opts: &ShotOptions) -> Result<(image::RgbaImage, ShotReport), 
         ..frame_params(&s, lens, opts.wireframe, opts.background)
     };
     let img = draw(&gpu, &mut s, &params)?;
+    let ground = {
+        let e = s.camera.eye;
+        super::shot_check::ground_at(s.session.url(), s.session.terrain(), e.x, e.y).await?
+    };
+    let warnings = super::shot_check::warnings(
+        s.session.terrain(),
+        &s.camera,
+        &lens,
+        ground,
+        super::shot_check::coverage(&img, opts.background),
+    );
     let c = s.session.counters();
     let report = ShotReport {
         adapter: gpu.describe(),
@@ -187,6 +200,7 @@ pub async fn shot(opts: &ShotOptions) -> Result<(image::RgbaImage, ShotReport), 
         active: s.session.active_count(),
         deltas: c.deltas,
         bytes: c.bytes_in,
+        warnings,
     };
     s.session.close().await;
     Ok((img, report))
