@@ -75,7 +75,7 @@ struct ServerArgs {
     )]
     server: String,
     /// Screen-space error threshold in pixels.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1.0)]
     tau: f32,
     /// Which stream: `vertex` (splits and merges) or `tiles` (tiles with crack patches).
     #[arg(long, value_enum, default_value = "vertex")]
@@ -133,10 +133,10 @@ struct StreamArgs {
     #[command(flatten)]
     target: ServerArgs,
     /// Bandwidth budget per session in bytes per second [default: none].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     budget: Option<u32>,
     /// Poses per second per session; 0 sends each pose as soon as the previous one is answered.
-    #[arg(long, default_value_t = fly::DEFAULT_RATE_HZ)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = fly::DEFAULT_RATE_HZ)]
     rate: f64,
 }
 
@@ -162,7 +162,7 @@ struct ViewArgs {
     #[arg(long, default_value = "1280x720", value_parser = shot::parse_size)]
     size: (u32, u32),
     /// Vertical field of view, degrees.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 60.0)]
     fov: f32,
     /// Draw triangle edges over the shading.
     #[arg(long)]
@@ -245,7 +245,7 @@ enum Command {
         #[arg(long, default_value = "standard")]
         path: PathKind,
         /// Fly only the path's first this many poses (0: all 600).
-        #[arg(long, default_value_t = 0)]
+        #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
         poses: usize,
         /// Print one JSON object instead of an indented one.
         #[arg(long)]
@@ -258,10 +258,10 @@ enum Command {
         #[command(flatten)]
         view: ViewArgs,
         /// Camera poses sent to the server per second.
-        #[arg(long, default_value_t = 10.0)]
+        #[arg(long, allow_negative_numbers = true, default_value_t = 10.0)]
         rate: f64,
         /// Close by itself after this many seconds (for scripted checks) [default: never].
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         exit_after: Option<f64>,
     },
     /// Run many sessions at once against a server and report bandwidth, latency, errors and the
@@ -270,10 +270,10 @@ enum Command {
         #[command(flatten)]
         stream: StreamArgs,
         /// Concurrent sessions (ignored with --sweep).
-        #[arg(long, default_value_t = 10)]
+        #[arg(long, allow_negative_numbers = true, default_value_t = 10)]
         sessions: usize,
         /// Seconds every session flies once all have started.
-        #[arg(long, default_value_t = 30.0)]
+        #[arg(long, allow_negative_numbers = true, default_value_t = 30.0)]
         duration: f64,
         /// Which paths: `standard` or `stress` (phase-shifted per session), or `random`
         /// (a seeded loop per session).
@@ -283,7 +283,7 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
         /// Seconds over which sessions start, evenly spread [default: 10% of the duration].
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         ramp: Option<f64>,
         /// Rebuild fans as a viewer would (costs client CPU); tile sessions keep their decoded
         /// tiles (without it they keep a light mirror that checks every tile and digest).
@@ -293,7 +293,7 @@ enum Command {
         #[arg(long, value_delimiter = ',')]
         sweep: Vec<usize>,
         /// The p99 latency in milliseconds above which a sweep stage counts as broken away.
-        #[arg(long, default_value_t = 50.0)]
+        #[arg(long, allow_negative_numbers = true, default_value_t = 50.0)]
         knee_ms: f64,
         /// Write the JSON report to this file.
         #[arg(long)]

@@ -230,14 +230,20 @@ async fn virtual_client(plan: Plan) -> SessionOutcome {
     out
 }
 
+/// The options every stage shares, checked (the session count is checked per stage).
+fn check(opts: &LoadOptions) -> Result<(), LoadError> {
+    if !(opts.rate_hz.is_finite() && opts.rate_hz >= 0.0) {
+        return Err(LoadError::Options("--rate must be 0 or more".into()));
+    }
+    Ok(())
+}
+
 /// Runs one stage and reports it.
 pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
     if opts.sessions == 0 {
         return Err(LoadError::Options("--sessions must be at least 1".into()));
     }
-    if !(opts.rate_hz.is_finite() && opts.rate_hz >= 0.0) {
-        return Err(LoadError::Options("--rate must be 0 or more".into()));
-    }
+    check(opts)?;
     let base = http::base_of(&opts.url)?;
     let extent = terrain_extent(&base).await?;
     // Paths: one shared loop for standard and stress (phase-shifted), one per session for random.
@@ -353,6 +359,15 @@ pub async fn run_sweep(
     opts: &LoadOptions,
     counts: &[usize],
 ) -> Result<Vec<StageReport>, LoadError> {
+    // Every stage's options are checked before the first starts, so a bad one fails at once.
+    if counts.contains(&0) {
+        return Err(LoadError::Options(if counts.len() > 1 {
+            "--sweep: every stage needs at least 1 session".into()
+        } else {
+            "--sessions must be at least 1".into()
+        }));
+    }
+    check(opts)?;
     let mut stages = Vec::new();
     for &n in counts {
         let o = LoadOptions {
@@ -360,7 +375,7 @@ pub async fn run_sweep(
             ..opts.clone()
         };
         if opts.progress {
-            eprintln!("stage: {n} sessions");
+            eprintln!("stage: {n} session{}", if n == 1 { "" } else { "s" });
         }
         stages.push(run_stage(&o).await?);
         // Let the server settle (sessions close, memory returns) between stages.
