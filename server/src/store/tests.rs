@@ -73,6 +73,27 @@ fn corrupt_stores_are_refused() {
     let e = expect_err(&bad, &flipped);
     assert!(matches!(e, StoreError::Corrupt(_)), "{e}");
 
+    // The tile sections (issue 10): a flipped byte in the last tile blob, and a tile record
+    // pointing past the blobs with its checksums recomputed, are both refused.
+    let mut tile = good.clone();
+    let header = format::Header::parse(&good[..format::HEADER_LEN], good.len() as u64).unwrap();
+    let (data_off, data_len) = header.sections[7];
+    tile[(data_off + data_len - 1) as usize] ^= 0x01;
+    let e = expect_err(&bad, &tile);
+    assert!(e.to_string().contains("checksum"), "{e}");
+    let mut rec = good.clone();
+    let (rec_off, _) = header.sections[6];
+    rec[rec_off as usize + 8..rec_off as usize + 12].copy_from_slice(&u32::MAX.to_le_bytes());
+    let mut h2 = header.clone();
+    let mut crc = crc32fast::Hasher::new();
+    for (off, len) in h2.sections {
+        crc.update(&rec[off as usize..(off + len) as usize]);
+    }
+    h2.body_crc = crc.finalize();
+    rec[..format::HEADER_LEN].copy_from_slice(&h2.to_bytes());
+    let e = expect_err(&bad, &rec);
+    assert!(e.to_string().contains("tile record 0"), "{e}");
+
     let mut hdr = good.clone();
     hdr[13] ^= 1; // width
     let e = expect_err(&bad, &hdr);
