@@ -32,6 +32,26 @@ pub struct FlightLog {
 }
 
 impl FlightLog {
+    /// Applies deltas until a complete one reflects pose `seq`, recording each as it arrives
+    /// (not all at the end, as collecting them with [`Session::wait_for_pose`] would: that put
+    /// every byte of a late answer into the second the wait ended, and overstated the latency
+    /// of the poses answered on the way; issue 18).
+    async fn await_pose(
+        &mut self,
+        session: &mut Session,
+        seq: u64,
+        t0: Instant,
+        sent_at: &mut HashMap<u64, Instant>,
+    ) -> Result<(), ClientError> {
+        loop {
+            let a = session.next_delta().await?;
+            self.record(&a, t0, sent_at);
+            if a.pose_seq >= seq && a.complete {
+                return Ok(());
+            }
+        }
+    }
+
     fn record(&mut self, a: &Applied, t0: Instant, sent_at: &mut HashMap<u64, Instant>) {
         let now = Instant::now();
         let sec = now.duration_since(t0).as_secs() as usize;
@@ -102,16 +122,12 @@ pub async fn fly_poses(
         sent_at.insert(seq, now);
         log.poses += 1;
         if period.is_none() {
-            for a in session.wait_for_pose(seq).await? {
-                log.record(&a, t0, &mut sent_at);
-            }
+            log.await_pose(session, seq, t0, &mut sent_at).await?;
         }
     }
     // The last pose's answer.
     if let Some(&last) = sent_at.keys().max() {
-        for a in session.wait_for_pose(last).await? {
-            log.record(&a, t0, &mut sent_at);
-        }
+        log.await_pose(session, last, t0, &mut sent_at).await?;
     }
     Ok(log)
 }

@@ -8,7 +8,8 @@
 //! - [`flight`]: one session flown along camera poses, recording latency and bytes over time.
 //! - [`fly`]: `relief-client fly`: one flight along a camera path, with its figures.
 //! - [`load`]: `relief-client load`: many sessions at once, with reports, plots and sweeps.
-//! - [`plot`]: PNG line charts (embedded bitmap font, nice ticks, legend) for load reports.
+//! - [`plot`]: PNG charts for load reports, drawn with plotters (embedded font, log axes, markers,
+//!   notes).
 //! - [`render`]: the wgpu renderer: GPU buffers that follow the mirror, the geomorph and terrain
 //!   passes, offscreen shots and the renderer's benchmark.
 //! - [`viewer`]: `relief-client view`: a window with a fly camera over the streamed terrain.

@@ -56,6 +56,12 @@ pub fn json(stages: &[StageReport], knee_p99_ms: f64) -> String {
     serde_json::to_string_pretty(&r).unwrap_or_default()
 }
 
+/// Under the bandwidth plot: how its bins are counted, and why a line can run past the stage.
+const BANDWIDTH_NOTES: [&str; 2] = [
+    "Bytes in the second the client applied them. Poses stop at the stage's duration; past the knee, sessions",
+    "stay open until their last pose is answered, so the line runs on while the server's backlog drains.",
+];
+
 /// Writes `report.json`, the plots and `summary.md` into `dir`; returns the files written.
 pub fn write_report(
     dir: &Path,
@@ -72,6 +78,7 @@ pub fn write_report(
     files.push(p);
 
     let mut plots = Vec::new();
+    let sessions = |n: usize| format!("{n} session{}", if n == 1 { "" } else { "s" });
     let bandwidth = Chart {
         title: "Aggregate bandwidth over time".into(),
         x_label: "seconds".into(),
@@ -79,11 +86,13 @@ pub fn write_report(
         series: stages
             .iter()
             .map(|s| Series {
-                label: format!("{} sessions", s.sessions),
+                label: sessions(s.sessions),
                 points: s.timeline.iter().map(|t| (t.t_s, t.bytes_per_s)).collect(),
+                markers: false,
             })
             .collect(),
-        log_x: false,
+        notes: BANDWIDTH_NOTES.map(String::from).into(),
+        ..Chart::default()
     };
     plots.push(("bandwidth.png", "Bandwidth over time", bandwidth));
     let cdf = Chart {
@@ -93,37 +102,53 @@ pub fn write_report(
         series: stages
             .iter()
             .map(|s| Series {
-                label: format!("{} sessions", s.sessions),
+                label: sessions(s.sessions),
                 points: s.latency_cdf.clone(),
+                markers: false,
             })
             .collect(),
         log_x: true,
+        y_range: Some((0.0, 1.0)),
+        notes: vec![
+            "One point per percentile of each stage's pose latencies, then 99.9 %, 99.99 % and the maximum."
+                .into(),
+        ],
+        ..Chart::default()
     };
     plots.push(("latency_cdf.png", "Latency CDF", cdf));
     if stages.len() > 1 {
-        let against = |title: &str, y: &str, f: &dyn Fn(&StageReport) -> f64| Chart {
+        let against = |title: &str, y: &str, log_y: bool, f: &dyn Fn(&StageReport) -> f64| Chart {
             title: title.into(),
             x_label: "sessions".into(),
             y_label: y.into(),
             series: vec![Series {
                 label: y.into(),
                 points: stages.iter().map(|s| (s.sessions as f64, f(s))).collect(),
+                markers: true,
             }],
             log_x: true,
+            log_y,
+            ..Chart::default()
         };
         plots.push((
             "latency_vs_sessions.png",
             "p99 latency against sessions",
-            against("p99 latency against sessions", "p99 latency ms", &|s| {
-                s.latency_ms.p99
-            }),
+            against(
+                "p99 latency against sessions",
+                "p99 latency ms",
+                true,
+                &|s| s.latency_ms.p99,
+            ),
         ));
         plots.push((
             "cpu_vs_sessions.png",
             "Server CPU against sessions",
-            against("Server CPU against sessions", "server cores busy", &|s| {
-                s.server.cpu_utilisation
-            }),
+            against(
+                "Server CPU against sessions",
+                "server cores busy",
+                false,
+                &|s| s.server.cpu_utilisation,
+            ),
         ));
     }
     let mut embedded = Vec::new();

@@ -236,10 +236,7 @@ pub fn summarise(
         max: hist.max() as f64 / 1e3,
         samples: hist.len(),
     };
-    r.latency_cdf = hist
-        .iter_quantiles(2)
-        .map(|v| (v.value_iterated_to() as f64 / 1e3, v.quantile_iterated_to()))
-        .collect();
+    r.latency_cdf = cdf(&hist);
     if let (Some(a), Some(b)) = (samples.first(), samples.last()) {
         let peak = samples
             .iter()
@@ -293,6 +290,32 @@ pub fn summarise(
         })
         .collect();
     r
+}
+
+/// The latency CDF as (milliseconds, fraction at or below): one point at every percentile from
+/// the minimum, then 99.9 %, 99.99 % and the maximum (none without samples).
+pub fn cdf(hist: &hdrhistogram::Histogram<u64>) -> Vec<(f64, f64)> {
+    if hist.is_empty() {
+        return Vec::new();
+    }
+    let mut qs: Vec<f64> = (0..=100).map(|p| p as f64 / 100.0).collect();
+    qs.splice(100..100, [0.999, 0.9999]);
+    let ms = |v: u64| v as f64 / 1e3;
+    let mut out: Vec<(f64, f64)> = qs
+        .into_iter()
+        .map(|q| {
+            let v = if q == 0.0 {
+                hist.min()
+            } else if q == 1.0 {
+                hist.max()
+            } else {
+                hist.value_at_quantile(q)
+            };
+            (ms(v), q)
+        })
+        .collect();
+    out.dedup();
+    out
 }
 
 /// Where a sweep breaks away: the first stage whose p99 latency exceeds `p99_ms` or that has

@@ -1,17 +1,18 @@
-//! A small PNG line-chart renderer for the figures of `relief-client load --report DIR`:
-//! bandwidth over time, the latency CDF, latency and server CPU against sessions.
+//! PNG charts for the figures of `relief-client load --report DIR`: bandwidth over time, the
+//! latency CDF, latency and server CPU against sessions.
 //!
-//! No plotting or font library: the canvas is an [`image::RgbImage`], lines are 2-px Bresenham
-//! polylines and text is an embedded 5x7 bitmap font drawn at 2x. Axes get "nice" ticks (1-2-5
-//! steps, or decades with [`Chart::log_x`]) with compact labels (1500 -> "1.5k"); a legend box
-//! sits in the plot area's emptiest corner. Points that cannot be drawn are skipped: non-finite
-//! ones, and with a log x axis those with x <= 0.
+//! Drawn with [`plotters`] into an RGB buffer (its bitmap backend, no system fonts: the text face
+//! is an ASCII subset of DejaVu Sans embedded from `client/fonts/`, with its licence beside it)
+//! and saved with [`image`]. Either axis may be logarithmic; a series may carry point markers;
+//! notes under the plot explain what a reader could trip over; the legend sits in the plot area's
+//! emptiest corner. Points that cannot be drawn are skipped: non-finite ones, and on a log axis
+//! those at or below 0.
 
-mod canvas;
-
-use canvas::{BLACK, Canvas, GLYPH_H, GRID, WHITE, text_width, widest};
-use image::{ImageFormat, Rgb, RgbImage};
+use plotters::coord::Shift;
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::prelude::*;
 use std::path::Path;
+use std::sync::OnceLock;
 
 /// One line of a chart.
 #[derive(Clone, Debug, Default)]
@@ -20,6 +21,9 @@ pub struct Series {
     pub label: String,
     /// The points, (x, y), joined in this order.
     pub points: Vec<(f64, f64)>,
+    /// Whether each point also gets a marker (for sparse series, where the line alone hides
+    /// where the measurements are).
+    pub markers: bool,
 }
 
 /// A line chart.
@@ -33,8 +37,16 @@ pub struct Chart {
     pub y_label: String,
     /// The lines, coloured in order from a fixed palette of six.
     pub series: Vec<Series>,
-    /// Whether the x axis is logarithmic (decade ticks; points with x <= 0 are skipped).
+    /// Whether the x axis is logarithmic (points with x <= 0 are skipped).
     pub log_x: bool,
+    /// Whether the y axis is logarithmic (points with y <= 0 are skipped): for values that span
+    /// decades, which a linear axis squashes onto its zero line. Data within one decade is drawn
+    /// on a linear axis from 0 instead.
+    pub log_y: bool,
+    /// A fixed y range instead of the data's (e.g. 0..1 for a CDF).
+    pub y_range: Option<(f64, f64)>,
+    /// Lines of text under the plot: what the reader should know to read it.
+    pub notes: Vec<String>,
 }
 
 /// Why a chart could not be rendered.
@@ -51,25 +63,59 @@ pub enum PlotError {
     /// No series has a point that can be drawn.
     #[error("the chart has no finite points to draw")]
     NoData,
+    /// plotters failed to draw (a font or backend error).
+    #[error("cannot draw the plot: {0}")]
+    Draw(String),
 }
 
-const PALETTE: [[u8; 3]; 6] = [
-    [31, 119, 180],
-    [255, 127, 14],
-    [44, 160, 44],
-    [214, 39, 40],
-    [148, 103, 189],
-    [140, 86, 75],
+/// Matplotlib's first six "tab10" colours.
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
 ];
+
+/// The text face: DejaVu Sans cut to ASCII and a few symbols (14 KB; see
+/// `client/fonts/LICENSE.txt`).
+const FONT: &[u8] = include_bytes!("../../fonts/ReliefPlotSans.ttf");
+
+/// The family every text style names.
+const FAMILY: &str = "sans-serif";
+
+/// Registers [`FONT`] with plotters once per process.
+fn font() -> Result<(), PlotError> {
+    static DONE: OnceLock<bool> = OnceLock::new();
+    let ok = *DONE
+        .get_or_init(|| plotters::style::register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    ok.then_some(())
+        .ok_or_else(|| PlotError::Draw("the embedded font does not load".into()))
+}
 
 /// Renders `chart` as a `width` x `height` RGB PNG at `path`.
 ///
-/// 640 x 400 suits a report page. Fails with [`PlotError::NoData`] when no series has a
+/// 900 x 500 suits a report page. Fails with [`PlotError::NoData`] when no series has a
 /// drawable point, and with [`PlotError::Write`] when the file cannot be written.
 pub fn render_png(chart: &Chart, path: &Path, width: u32, height: u32) -> Result<(), PlotError> {
-    let ok = |&(x, y): &(f64, f64)| x.is_finite() && y.is_finite() && (!chart.log_x || x > 0.0);
-    let series = chart.series.iter();
-    let series: Vec<Vec<_>> = series
+    let img = render(chart, width, height)?;
+    img.save_with_format(path, image::ImageFormat::Png)
+        .map_err(|source| PlotError::Write {
+            path: path.display().to_string(),
+            source,
+        })
+}
+
+/// Renders `chart` into an image.
+pub fn render(chart: &Chart, width: u32, height: u32) -> Result<image::RgbImage, PlotError> {
+    font()?;
+    let ok = |&(x, y): &(f64, f64)| {
+        x.is_finite() && y.is_finite() && (!chart.log_x || x > 0.0) && (!chart.log_y || y > 0.0)
+    };
+    let series: Vec<Vec<(f64, f64)>> = chart
+        .series
+        .iter()
         .map(|s| s.points.iter().copied().filter(ok).collect())
         .collect();
     if series.iter().all(Vec::is_empty) {
@@ -79,348 +125,294 @@ pub fn render_png(chart: &Chart, path: &Path, width: u32, height: u32) -> Result
     for &(x, y) in series.iter().flatten() {
         (x_lo, x_hi, y_lo, y_hi) = (x_lo.min(x), x_hi.max(x), y_lo.min(y), y_hi.max(y));
     }
-    let xa = if chart.log_x {
-        Axis::log(x_lo, x_hi)
-    } else {
-        Axis::linear(x_lo, x_hi)
-    };
-    let ya = Axis::linear(y_lo, y_hi);
-
-    // The plot area, (x0, y0) to (x1, y1) in pixels: room on the left for the rotated y label
-    // and the widest y tick label, below for the x tick labels and the x label, above for the
-    // title, on the right for half the last x tick label.
-    let last_x_w = widest(xa.ticks.last().map(|t| t.1.as_str()).into_iter());
-    let x0 = 8 + GLYPH_H + 10 + widest(ya.ticks.iter().map(|t| t.1.as_str())) + 10;
-    let x1 = (i64::from(width) - (last_x_w / 2 + 8).max(20)).max(x0 + 1);
-    let y0 = 10 + GLYPH_H + 12;
-    let y1 = (i64::from(height) - (8 + GLYPH_H + 10 + GLYPH_H + 8)).max(y0 + 1);
-    let px = |x: f64| x0 as f64 + xa.frac(x) * (x1 - x0) as f64;
-    let py = |y: f64| y1 as f64 - ya.frac(y) * (y1 - y0) as f64;
-
-    let mut c = Canvas(RgbImage::from_pixel(width, height, WHITE));
-    for (x, _) in &xa.ticks {
-        c.fill(px(*x).round() as i64, y0, 1, y1 - y0, GRID);
+    // Less than a decade reads better (and gets labelled ticks) on a linear axis.
+    let log_y = chart.log_y && y_hi >= 10.0 * y_lo;
+    if let Some((lo, hi)) = chart.y_range {
+        (y_lo, y_hi) = (lo, hi);
+    } else if !log_y {
+        // Linear y axes start at 0 for positive data, so that bars of bandwidth or CPU read true.
+        y_lo = y_lo.min(0.0);
+        y_hi += (y_hi - y_lo) * 0.05;
     }
-    for (y, _) in &ya.ticks {
-        c.fill(x0, py(*y).round() as i64, x1 - x0, 1, GRID);
-    }
-    let lines: Vec<Vec<(f64, f64)>> = series
-        .iter()
-        .map(|s| s.iter().map(|&(x, y)| (px(x), py(y))).collect())
-        .collect();
-    for (i, line) in lines.iter().enumerate() {
-        let colour = Rgb(PALETTE[i % PALETTE.len()]);
-        if let [(x, y)] = line.as_slice() {
-            c.fill(*x as i64 - 2, *y as i64 - 2, 5, 5, colour);
-        }
-        for s in line.windows(2) {
-            c.line(s[0], s[1], colour);
+    let (mut x_lo, mut x_hi) = padded(x_lo, x_hi, chart.log_x);
+    let (mut y_lo, mut y_hi) = padded(y_lo, y_hi, log_y);
+    if chart.series.iter().any(|s| s.markers) {
+        // Room for the markers at the ends (a fixed y range is kept).
+        (x_lo, x_hi) = widened(x_lo, x_hi, chart.log_x);
+        if chart.y_range.is_none() {
+            (y_lo, y_hi) = widened(y_lo, y_hi, log_y);
         }
     }
-
-    c.frame(x0, y0, x1 - x0, y1 - y0);
-    for (x, label) in &xa.ticks {
-        let x = px(*x).round() as i64;
-        c.fill(x, y1, 1, 5, BLACK);
-        c.text(x - text_width(label) / 2, y1 + 8, label, false);
-    }
-    for (y, label) in &ya.ticks {
-        let y = py(*y).round() as i64;
-        c.fill(x0 - 5, y, 5, 1, BLACK);
-        c.text(x0 - 8 - text_width(label), y - GLYPH_H / 2, label, false);
-    }
-    let centred = |s: &str| (x0 + x1 - text_width(s)) / 2;
-    c.text(
-        centred(&chart.x_label),
-        y1 + 18 + GLYPH_H,
-        &chart.x_label,
-        false,
-    );
-    c.text(centred(&chart.title), 10, &chart.title, false);
-    let yl = &chart.y_label;
-    c.text(8, (y0 + y1 + text_width(yl)) / 2, yl, true);
-
-    // The legend, in the corner of the plot area that the lines cross least.
-    let lw = 8 + 20 + 6 + widest(chart.series.iter().map(|s| s.label.as_str())) + 8;
-    let lh = 6 + 20 * chart.series.len() as i64;
-    let (left, right, top, bottom) = (x0 + 8, x1 - 8 - lw, y0 + 8, y1 - 8 - lh);
-    let crossings = |&(lx, ly): &(i64, i64)| {
-        let inside = |(x, y): (f64, f64)| {
-            (lx..=lx + lw).contains(&(x as i64)) && (ly..=ly + lh).contains(&(y as i64))
-        };
-        let segments = lines
-            .iter()
-            .flat_map(|l| l.windows(2).map(|s| (s[0], s[1])));
-        let samples = segments.flat_map(|(a, b)| (0..=8).map(move |k| lerp(a, b, k)));
-        samples.filter(|&p| inside(p)).count()
-    };
-    let corners = [(right, top), (left, top), (right, bottom), (left, bottom)];
-    let (lx, ly) = corners
-        .iter()
-        .copied()
-        .min_by_key(crossings)
-        .unwrap_or(corners[0]);
-    c.fill(lx, ly, lw, lh, WHITE);
-    c.frame(lx, ly, lw, lh);
-    for (i, s) in chart.series.iter().enumerate() {
-        let row = ly + 6 + 20 * i as i64;
-        c.fill(
-            lx + 8,
-            row + GLYPH_H / 2 - 2,
-            20,
-            4,
-            Rgb(PALETTE[i % PALETTE.len()]),
-        );
-        c.text(lx + 34, row, &s.label, false);
-    }
-
-    let write = |source| PlotError::Write {
-        path: path.display().to_string(),
-        source,
-    };
-    c.0.save_with_format(path, ImageFormat::Png).map_err(write)
-}
-
-/// An axis: its range in transformed units (log10 for a log axis) and its labelled ticks as
-/// (data value, label).
-struct Axis {
-    lo: f64,
-    hi: f64,
-    log: bool,
-    ticks: Vec<(f64, String)>,
-}
-
-impl Axis {
-    /// Ticks at 1-2-5 steps covering `lo..=hi`, the range padded when it is empty.
-    fn linear(lo: f64, hi: f64) -> Axis {
-        let pad = match (hi - lo <= 1e-9 * lo.abs().max(hi.abs()), lo == 0.0) {
-            (false, _) => 0.0,
-            (true, true) => 1.0,
-            (true, false) => lo.abs() * 0.1,
-        };
-        let (lo, hi) = (lo - pad, hi + pad);
-        let raw = (hi - lo) / 5.0;
-        let mag = 10f64.powf(raw.log10().floor());
-        let steps = [(1.5, 1.0), (3.5, 2.0), (7.5, 5.0)];
-        let step = mag
-            * steps
-                .iter()
-                .find(|(f, _)| raw / mag < *f)
-                .map_or(10.0, |m| m.1);
-        let (k0, k1) = ((lo / step).floor(), (hi / step).ceil());
-        if !(step.is_finite() && step > 0.0 && k1 - k0 <= 100.0) {
-            let ticks = [lo, hi].map(|v| (v, format_tick(v, hi - lo))).into();
-            return Axis {
-                lo,
-                hi,
-                log: false,
-                ticks,
-            };
-        }
-        let ticks = (k0 as i64..=k1 as i64).map(|k| k as f64 * step);
-        let ticks = ticks.map(|v| (v, format_tick(v, step))).collect();
-        Axis {
-            lo: k0 * step,
-            hi: k1 * step,
-            log: false,
-            ticks,
-        }
-    }
-
-    /// Decade ticks covering `lo..=hi` (both > 0), about ten of them at most.
-    fn log(lo: f64, hi: f64) -> Axis {
-        let (e0, e1) = (lo.log10().floor(), hi.log10().ceil());
-        let e1 = e1.max(e0 + 1.0);
-        let stride = ((e1 - e0) / 10.0).ceil().max(1.0) as usize;
-        let ticks = (e0 as i32..=e1 as i32)
-            .step_by(stride)
-            .map(|e| 10f64.powi(e));
-        let ticks = ticks.map(|v| (v, format_tick(v, v))).collect();
-        Axis {
-            lo: e0,
-            hi: e1,
-            log: true,
-            ticks,
-        }
-    }
-
-    /// Where data value `v` falls, 0 at `lo` and 1 at `hi`.
-    fn frac(&self, v: f64) -> f64 {
-        let t = if self.log { v.log10() } else { v };
-        (t - self.lo) / (self.hi - self.lo)
-    }
-}
-
-/// A tick label, compact: 1500 -> "1.5k", 2000000 -> "2M", 0.25 -> "0.25", 0.00002 -> "2e-5",
-/// with the decimals that `step` (the spacing of the ticks) needs.
-fn format_tick(v: f64, step: f64) -> String {
-    fn trim(s: &str) -> &str {
-        if s.contains('.') {
-            s.trim_end_matches('0').trim_end_matches('.')
+    let mut buf = vec![255u8; width as usize * height as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();
+        let draw = |e: &dyn std::fmt::Display| PlotError::Draw(e.to_string());
+        root.fill(&WHITE).map_err(|e| draw(&e))?;
+        let note_h = if chart.notes.is_empty() {
+            0
         } else {
-            s
+            chart.notes.len() as u32 * 18 + 10
+        };
+        let (plot, notes) = root.split_vertically(height.saturating_sub(note_h));
+        let corner = emptiest_corner(&series, (x_lo, x_hi, chart.log_x), (y_lo, y_hi, log_y));
+        let xs = (x_lo, x_hi);
+        let ys = (y_lo, y_hi);
+        match (chart.log_x, log_y) {
+            (false, false) => draw_on(&plot, chart, &series, xs.0..xs.1, ys.0..ys.1, corner),
+            (true, false) => draw_on(
+                &plot,
+                chart,
+                &series,
+                (xs.0..xs.1).log_scale(),
+                ys.0..ys.1,
+                corner,
+            ),
+            (false, true) => draw_on(
+                &plot,
+                chart,
+                &series,
+                xs.0..xs.1,
+                (ys.0..ys.1).log_scale(),
+                corner,
+            ),
+            (true, true) => draw_on(
+                &plot,
+                chart,
+                &series,
+                (xs.0..xs.1).log_scale(),
+                (ys.0..ys.1).log_scale(),
+                corner,
+            ),
         }
+        .map_err(|e| PlotError::Draw(e.to_string()))?;
+        for (i, line) in chart.notes.iter().enumerate() {
+            notes
+                .draw(&Text::new(
+                    line.as_str(),
+                    (14, 4 + i as i32 * 18),
+                    (FAMILY, 14).into_font().color(&RGBColor(70, 70, 70)),
+                ))
+                .map_err(|e| draw(&e))?;
+        }
+        root.present().map_err(|e| draw(&e))?;
     }
-    let a = v.abs();
-    if a == 0.0 || a < step.abs() * 1e-9 {
-        return "0".into();
-    }
-    if !(1e-3..1e15).contains(&a) {
-        let s = format!("{v:.2e}");
-        let (mantissa, exp) = s.split_once('e').unwrap_or((&s, "0"));
-        return format!("{}e{exp}", trim(mantissa));
-    }
-    let suffixes = [(1e12, "T"), (1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, "")];
-    let (div, suffix) = suffixes
-        .into_iter()
-        .find(|(d, _)| a >= *d)
-        .unwrap_or((1.0, ""));
-    let decimals = (-(step.abs() / div).log10().floor()).clamp(0.0, 6.0) as usize;
-    format!("{}{suffix}", trim(&format!("{:.*}", decimals, v / div)))
+    image::RgbImage::from_raw(width, height, buf)
+        .ok_or_else(|| PlotError::Draw("the plot buffer has the wrong size".into()))
 }
 
-/// The point `k` eighths of the way from `a` to `b`.
-fn lerp(a: (f64, f64), b: (f64, f64), k: u8) -> (f64, f64) {
-    let t = f64::from(k) / 8.0;
-    (a.0 + (b.0 - a.0) * t, a.1 + (b.1 - a.1) * t)
+/// `lo..hi` widened when empty (by 10 %, or to 0..1 around 0; on a log axis by a factor of 2).
+fn padded(lo: f64, hi: f64, log: bool) -> (f64, f64) {
+    if hi - lo > 1e-9 * lo.abs().max(hi.abs()) {
+        (lo, hi)
+    } else if log {
+        (lo / 2.0, hi * 2.0)
+    } else if lo == 0.0 {
+        (lo - 1.0, hi + 1.0)
+    } else {
+        (lo - lo.abs() * 0.1, hi + lo.abs() * 0.1)
+    }
+}
+
+/// `lo..hi` widened by 4 % of its span at each end (of its log span on a log axis).
+fn widened(lo: f64, hi: f64, log: bool) -> (f64, f64) {
+    if log {
+        let k = (hi / lo).powf(0.04);
+        (lo / k, hi * k)
+    } else {
+        let d = (hi - lo) * 0.04;
+        (if lo == 0.0 { lo } else { lo - d }, hi + d)
+    }
+}
+
+/// The legend's corner: the quadrant of the plot area with the fewest points.
+fn emptiest_corner(
+    series: &[Vec<(f64, f64)>],
+    (x_lo, x_hi, log_x): (f64, f64, bool),
+    (y_lo, y_hi, log_y): (f64, f64, bool),
+) -> SeriesLabelPosition {
+    let frac = |v: f64, lo: f64, hi: f64, log: bool| {
+        if log {
+            (v.ln() - lo.ln()) / (hi.ln() - lo.ln())
+        } else {
+            (v - lo) / (hi - lo)
+        }
+    };
+    let mut count = [0usize; 4]; // upper left, upper right, lower left, lower right
+    for &(x, y) in series.iter().flatten() {
+        let right = frac(x, x_lo, x_hi, log_x) > 0.5;
+        let lower = frac(y, y_lo, y_hi, log_y) < 0.5;
+        count[usize::from(lower) * 2 + usize::from(right)] += 1;
+    }
+    let order = [
+        (1, SeriesLabelPosition::UpperRight),
+        (0, SeriesLabelPosition::UpperLeft),
+        (3, SeriesLabelPosition::LowerRight),
+        (2, SeriesLabelPosition::LowerLeft),
+    ];
+    order
+        .into_iter()
+        .min_by_key(|(i, _)| count[*i])
+        .map_or(SeriesLabelPosition::UpperRight, |(_, p)| p)
+}
+
+/// A tick label: compact (1500 -> 1.5k, 2000000 -> 2M), at most three significant digits.
+pub fn compact(v: f64) -> String {
+    let a = v.abs();
+    let (scaled, suffix) = if a >= 1e9 {
+        (v / 1e9, "G")
+    } else if a >= 1e6 {
+        (v / 1e6, "M")
+    } else if a >= 1e3 {
+        (v / 1e3, "k")
+    } else {
+        (v, "")
+    };
+    let s = if scaled == 0.0 {
+        "0".to_string()
+    } else {
+        let digits = (2 - scaled.abs().log10().floor() as i32).clamp(0, 6) as usize;
+        format!("{scaled:.digits$}")
+    };
+    let s = if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    };
+    format!("{s}{suffix}")
+}
+
+/// Draws the axes, the series and the legend on `area` with the given axis ranges.
+fn draw_on<X, Y>(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    chart: &Chart,
+    series: &[Vec<(f64, f64)>],
+    x: X,
+    y: Y,
+    corner: SeriesLabelPosition,
+) -> Result<(), DrawingAreaErrorKind<<BitMapBackend<'static> as DrawingBackend>::ErrorType>>
+where
+    X: AsRangedCoord<Value = f64>,
+    Y: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+    Y::CoordDescType: ValueFormatter<f64>,
+{
+    let mut c = ChartBuilder::on(area)
+        .caption(&chart.title, (FAMILY, 22))
+        .margin(14)
+        .x_label_area_size(48)
+        .y_label_area_size(72)
+        .build_cartesian_2d(x, y)?;
+    c.configure_mesh()
+        .x_desc(chart.x_label.as_str())
+        .y_desc(chart.y_label.as_str())
+        .x_label_formatter(&|v| compact(*v))
+        .y_label_formatter(&|v| compact(*v))
+        .label_style((FAMILY, 14))
+        .axis_desc_style((FAMILY, 15))
+        .light_line_style(RGBColor(238, 238, 238))
+        .bold_line_style(RGBColor(215, 215, 215))
+        .draw()?;
+    for (k, (s, points)) in chart.series.iter().zip(series).enumerate() {
+        let colour = PALETTE[k % PALETTE.len()];
+        c.draw_series(LineSeries::new(
+            points.iter().copied(),
+            colour.stroke_width(2),
+        ))?
+        .label(s.label.as_str())
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 22, y)], colour.stroke_width(2)));
+        if s.markers {
+            c.draw_series(points.iter().map(|&p| Circle::new(p, 4, colour.filled())))?;
+        }
+    }
+    c.configure_series_labels()
+        .position(corner)
+        .label_font((FAMILY, 14))
+        .background_style(WHITE.mix(0.85))
+        .border_style(RGBColor(160, 160, 160))
+        .draw()?;
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Renders `chart` at 640 x 400 into a temporary directory and reads it back.
-    fn render(chart: &Chart) -> Result<RgbImage, PlotError> {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("chart.png");
-        render_png(chart, &path, 640, 400)?;
-        Ok(image::open(&path).unwrap().to_rgb8())
-    }
-
-    fn count(img: &RgbImage, colour: [u8; 3]) -> usize {
-        img.pixels().filter(|p| p.0 == colour).count()
+    fn count(img: &image::RgbImage, c: RGBColor) -> usize {
+        img.pixels().filter(|p| p.0 == [c.0, c.1, c.2]).count()
     }
 
     fn one(points: Vec<(f64, f64)>) -> Chart {
-        let series = vec![Series {
-            label: "p99 (ms)".into(),
-            points,
-        }];
         Chart {
-            title: "Latency: 100% / 2".into(),
-            series,
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "y".into(),
+            series: vec![Series {
+                label: "a".into(),
+                points,
+                markers: false,
+            }],
             ..Chart::default()
         }
     }
 
     #[test]
-    fn two_series_draw_in_their_colours() {
-        let series = |label: &str, f: fn(f64) -> f64| {
-            let points = (0..200)
-                .map(|i| f64::from(i) * 0.1)
-                .map(|x| (x, f(x)))
-                .collect();
-            Series {
-                label: label.into(),
-                points,
-            }
-        };
-        let series = vec![
-            series("sin", |x| 1500.0 * x.sin()),
-            series("linear", |x| 100.0 * x),
-        ];
-        let (title, x_label, y_label) = ("Bandwidth".into(), "time (s)".into(), "MB/s".into());
-        let img = render(&Chart {
-            title,
-            x_label,
-            y_label,
-            series,
-            log_x: false,
-        })
-        .unwrap();
-        assert_eq!(img.dimensions(), (640, 400));
-        assert!(img.pixels().any(|p| p.0 != [255, 255, 255]));
-        assert!(count(&img, PALETTE[0]) > 300, "{}", count(&img, PALETTE[0]));
-        assert!(count(&img, PALETTE[1]) > 300, "{}", count(&img, PALETTE[1]));
+    fn two_series_draw_in_their_colours_with_text() {
+        let mut c = one(vec![(0.0, 0.0), (10.0, 5.0)]);
+        c.series.push(Series {
+            label: "b".into(),
+            points: vec![(0.0, 5.0), (10.0, 0.0)],
+            markers: true,
+        });
+        c.notes = vec!["a note".into()];
+        let img = render(&c, 400, 300).unwrap();
+        assert!(count(&img, PALETTE[0]) > 100);
+        assert!(count(&img, PALETTE[1]) > 100);
+        // Text is drawn (anti-aliased dark pixels in the notes strip).
+        let dark = (img.height() - 20..img.height())
+            .flat_map(|y| (0..100).map(move |x| (x, y)))
+            .filter(|&(x, y)| img.get_pixel(x, y).0[0] < 150)
+            .count();
+        assert!(dark > 10, "{dark}");
     }
 
     #[test]
-    fn log_x_skips_undrawable_points() {
-        let mut points: Vec<_> = (0..40)
-            .map(|i| (10f64.powf(f64::from(i) / 10.0), 1.0))
-            .collect();
-        points.extend([
+    fn log_axes_skip_undrawable_points() {
+        let mut c = one(vec![
             (0.0, 1.0),
-            (-5.0, 2.0),
-            (f64::NAN, 1.0),
-            (3.0, f64::INFINITY),
+            (-1.0, 2.0),
+            (1.0, 0.0),
+            (10.0, 100.0),
+            (100.0, 3.0),
         ]);
-        let img = render(&Chart {
+        c.log_x = true;
+        c.log_y = true;
+        assert!(render(&c, 400, 300).is_ok());
+        let c = Chart {
             log_x: true,
-            ..one(points)
-        })
-        .unwrap();
-        assert_eq!(img.dimensions(), (640, 400));
-        assert!(count(&img, PALETTE[0]) > 300, "{}", count(&img, PALETTE[0]));
-        let ticks = Axis::log(1.0, 10f64.powf(3.9)).ticks;
-        assert_eq!(
-            ticks.iter().map(|t| t.1.as_str()).collect::<Vec<_>>(),
-            ["1", "10", "100", "1k", "10k"]
-        );
-    }
-
-    #[test]
-    fn degenerate_ranges_render_and_no_data_is_an_error() {
-        for points in [
-            vec![(1.0, 2.0)],
-            vec![(0.0, 0.0); 2],
-            vec![(1.0, 5.0), (2.0, 5.0)],
-        ] {
-            render(&one(points)).unwrap();
-        }
-        let nan = one(vec![(f64::NAN, 1.0), (f64::INFINITY, 2.0)]);
-        let log = Chart {
-            log_x: true,
-            ..one(vec![(0.0, 1.0), (-1.0, 2.0)])
+            ..one(vec![(0.0, 1.0), (f64::NAN, 2.0)])
         };
-        for chart in [nan, log, Chart::default()] {
-            assert!(matches!(render(&chart), Err(PlotError::NoData)));
-        }
-        let err = render_png(
-            &one(vec![(1.0, 1.0)]),
-            Path::new("/nonexistent/dir/x.png"),
-            64,
-            64,
-        );
-        assert!(matches!(err, Err(PlotError::Write { .. })));
+        assert!(matches!(render(&c, 400, 300), Err(PlotError::NoData)));
     }
 
     #[test]
-    fn ticks_are_nice_and_labels_compact() {
-        let labels = |a: Axis| a.ticks.into_iter().map(|t| t.1).collect::<Vec<_>>();
-        assert_eq!(
-            labels(Axis::linear(0.0, 9.7)),
-            ["0", "2", "4", "6", "8", "10"]
-        );
-        let want = ["0.1", "0.15", "0.2", "0.25", "0.3", "0.35"];
-        assert_eq!(labels(Axis::linear(0.1, 0.33)), want);
-        let want = ["0", "500", "1k", "1.5k", "2k", "2.5k", "3k"];
-        assert_eq!(labels(Axis::linear(0.0, 2600.0)), want);
-        assert_eq!(
-            labels(Axis::linear(5.0, 5.0)),
-            ["4.4", "4.6", "4.8", "5", "5.2", "5.4", "5.6"]
-        );
-        let cases = [
-            (1500.0, 500.0, "1.5k"),
-            (2e6, 1e6, "2M"),
-            (0.25, 0.05, "0.25"),
-            (-1500.0, 500.0, "-1.5k"),
-        ];
-        for (v, step, want) in cases {
-            assert_eq!(format_tick(v, step), want);
-        }
-        for (v, step, want) in [(2e-5, 1e-5, "2e-5"), (3e9, 1e9, "3G"), (1e-17, 0.1, "0")] {
-            assert_eq!(format_tick(v, step), want);
-        }
+    fn degenerate_ranges_render() {
+        assert!(render(&one(vec![(1.0, 1.0)]), 300, 200).is_ok());
+        assert!(render(&one(vec![(0.0, 0.0), (0.0, 0.0)]), 300, 200).is_ok());
+        let c = Chart {
+            log_y: true,
+            ..one(vec![(3.0, 2.5)])
+        };
+        assert!(render(&c, 300, 200).is_ok());
+    }
+
+    #[test]
+    fn labels_are_compact() {
+        assert_eq!(compact(1500.0), "1.5k");
+        assert_eq!(compact(250.0), "250");
+        assert_eq!(compact(15000.0), "15k");
+        assert_eq!(compact(2_500_000.0), "2.5M");
+        assert_eq!(compact(0.25), "0.25");
+        assert_eq!(compact(0.0), "0");
+        assert_eq!(compact(3.0e9), "3G");
     }
 }
