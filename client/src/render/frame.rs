@@ -37,7 +37,8 @@ pub struct FrameParams {
     pub now: f32,
     /// Draw triangle edges over the shading.
     pub wireframe: bool,
-    /// Heights spanned by the colour ramp, metres.
+    /// The terrain's lowest and highest heights, metres (in the uniform block for shaders that
+    /// want a relative ramp; the default hypsometric ramp in `shade.wgsl` is in absolute metres).
     pub z_range: (f32, f32),
     /// Encode sRGB in the shader (for targets that do not encode it themselves).
     pub encode_srgb: bool,

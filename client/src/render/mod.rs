@@ -63,7 +63,7 @@ pub fn fog_distance(geom: &TerrainGeometry) -> f32 {
     w.max(h)
 }
 
-/// The heights a colour ramp spans: the terrain's lowest to highest, metres.
+/// The terrain's lowest to highest heights, metres.
 pub fn height_range(info: &relief_proto::msg::TerrainInfo) -> (f32, f32) {
     (info.height_range[0], info.height_range[1])
 }

@@ -1,6 +1,6 @@
 // The shading every terrain pass shares (the vertex stream's `terrain.wgsl` and the tile
 // stream's `tiles.wgsl` are each appended to this file): the frame's uniform block, the vertex
-// output, the height colour ramp, and the fragment shader with sun, haze and wireframe.
+// output, the hypsometric colour ramp, and the fragment shader with sun, haze and wireframe.
 
 struct Frame {
     // Projection times view, for positions relative to the eye.
@@ -13,7 +13,7 @@ struct Frame {
     planes: array<vec4<f32>, 5>,
     // tau (px), lambda, growth duration (s, 0: none), off-axis bound.
     morph: vec4<f32>,
-    // near (m), lowest height, highest height (the colour ramp), wireframe (0 or 1).
+    // near (m), lowest height, highest height (of the terrain), wireframe (0 or 1).
     misc: vec4<f32>,
     // xyz: unit direction towards the sun; w: 1 to encode sRGB in the shader.
     light: vec4<f32>,
@@ -35,21 +35,33 @@ struct VOut {
     @location(3) crack: f32,
 };
 
-// Height colour ramp: lowland green, upland olive, brown, grey rock, snow.
-fn ramp(t: f32) -> vec3<f32> {
-    let c0 = vec3<f32>(0.16, 0.30, 0.10);
-    let c1 = vec3<f32>(0.42, 0.45, 0.20);
-    let c2 = vec3<f32>(0.45, 0.33, 0.20);
-    let c3 = vec3<f32>(0.50, 0.48, 0.46);
-    let c4 = vec3<f32>(0.95, 0.95, 0.97);
-    if (t < 0.25) {
-        return mix(c0, c1, t / 0.25);
-    } else if (t < 0.5) {
-        return mix(c1, c2, (t - 0.25) / 0.25);
-    } else if (t < 0.8) {
-        return mix(c2, c3, (t - 0.5) / 0.3);
+// Hypsometric colour ramp in metres above sea level (linear RGB), so that a colour means the
+// same height on every terrain: green lowlands, olive and tan uplands, browns, grey rock above
+// the tree line, snow only on the highest summits (from about 3,300 m, white by 3,700 m).
+// Below sea level stays the lowland green.
+fn ramp(h: f32) -> vec3<f32> {
+    var stops = array<vec4<f32>, 9>(
+        vec4<f32>(0.0, 0.13, 0.27, 0.10),
+        vec4<f32>(300.0, 0.24, 0.38, 0.14),
+        vec4<f32>(800.0, 0.42, 0.45, 0.22),
+        vec4<f32>(1400.0, 0.50, 0.42, 0.26),
+        vec4<f32>(2000.0, 0.42, 0.32, 0.21),
+        vec4<f32>(2600.0, 0.40, 0.36, 0.33),
+        vec4<f32>(3100.0, 0.55, 0.54, 0.53),
+        vec4<f32>(3400.0, 0.82, 0.82, 0.84),
+        vec4<f32>(3700.0, 0.95, 0.95, 0.97),
+    );
+    if (h <= stops[0].x) {
+        return stops[0].yzw;
     }
-    return mix(c3, c4, (t - 0.8) / 0.2);
+    for (var i = 1u; i < 9u; i++) {
+        if (h < stops[i].x) {
+            let a = stops[i - 1u];
+            let b = stops[i];
+            return mix(a.yzw, b.yzw, (h - a.x) / (b.x - a.x));
+        }
+    }
+    return stops[8].yzw;
 }
 
 @fragment
@@ -59,8 +71,7 @@ fn fs(in: VOut) -> @location(0) vec4<f32> {
     if (n.z < 0.0) {
         n = -n;
     }
-    let span = max(frame.misc.z - frame.misc.y, 1.0);
-    let base = ramp(clamp((in.height - frame.misc.y) / span, 0.0, 1.0));
+    let base = ramp(in.height);
     let lambert = max(dot(n, frame.light.xyz), 0.0);
     var c = base * (0.30 + 0.95 * lambert);
     let fog = 1.0 - exp(-length(in.rel) / frame.haze.w);
