@@ -24,18 +24,27 @@ pub struct Renderer {
     cells: GpuPool,
     /// Drawn positions, one `vec4<f32>` per node slot, written by the compute pass (tests).
     drawn: wgpu::Buffer,
+    /// Smooth normals, four `i32` per node slot: sums of the drawn triangles' unit normals
+    /// around each node, cleared and written each frame by the normals pass.
+    normal_sums: wgpu::Buffer,
     /// The uniform block.
     frame: wgpu::Buffer,
     /// Group 0: frame and nodes.
     layout_common: wgpu::BindGroupLayout,
     /// Group 1: drawn positions, written.
     layout_morph: wgpu::BindGroupLayout,
-    /// Group 2: cells and drawn positions, read.
+    /// Group 2: cells, drawn positions and normals, read.
     layout_draw: wgpu::BindGroupLayout,
-    /// Bind groups, remade when a buffer grows.
-    groups: Option<[wgpu::BindGroup; 3]>,
+    /// Group 1 of the normals pass: the normal sums, written.
+    layout_sums: wgpu::BindGroupLayout,
+    /// Group 2 of the normals pass: cells and drawn positions, read.
+    layout_mesh: wgpu::BindGroupLayout,
+    /// Bind groups (common, morph, draw, sums, mesh), remade when a buffer grows.
+    groups: Option<[wgpu::BindGroup; 5]>,
     /// The geomorph pass.
     morph: wgpu::ComputePipeline,
+    /// The smooth-normals pass (after the geomorph pass).
+    normals: wgpu::ComputePipeline,
     /// The terrain pass, geomorphing per vertex.
     draw: wgpu::RenderPipeline,
     /// The terrain pass, reading the geomorph pass's output.
@@ -136,6 +145,18 @@ impl Renderer {
             entries: &[
                 storage(0, true, wgpu::ShaderStages::VERTEX),
                 storage(1, true, wgpu::ShaderStages::VERTEX),
+                storage(2, true, wgpu::ShaderStages::VERTEX),
+            ],
+        });
+        let layout_sums = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("relief normal sums"),
+            entries: &[storage(1, false, wgpu::ShaderStages::COMPUTE)],
+        });
+        let layout_mesh = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("relief mesh"),
+            entries: &[
+                storage(0, true, wgpu::ShaderStages::COMPUTE),
+                storage(1, true, wgpu::ShaderStages::COMPUTE),
             ],
         });
         let empty = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -151,6 +172,19 @@ impl Renderer {
             label: Some("relief draw"),
             bind_group_layouts: &[Some(&layout_common), Some(&empty), Some(&layout_draw)],
             immediate_size: 0,
+        });
+        let normals_layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("relief normals"),
+            bind_group_layouts: &[Some(&layout_common), Some(&layout_sums), Some(&layout_mesh)],
+            immediate_size: 0,
+        });
+        let normals = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("relief normals"),
+            layout: Some(&normals_layout),
+            module: &module,
+            entry_point: Some("normals_pass"),
+            compilation_options: Default::default(),
+            cache: None,
         });
         let morph = dev.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some("relief morph"),
@@ -195,16 +229,21 @@ impl Renderer {
         let _ = scene.nodes.take_dirty();
         let _ = scene.cells.take_dirty();
         let drawn = drawn_buffer(gpu, nodes.records);
+        let normal_sums = sums_buffer(gpu, nodes.records);
         Renderer {
             nodes,
             cells,
             drawn,
+            normal_sums,
             frame,
             layout_common,
             layout_morph,
             layout_draw,
+            layout_sums,
+            layout_mesh,
             groups: None,
             morph,
+            normals,
             draw,
             draw_pre,
             used: (scene.nodes.high_water(), scene.cells.high_water()),
@@ -220,6 +259,7 @@ impl Renderer {
         let (b, grew_cells) = self.cells.sync(gpu, &mut scene.cells, "relief cells");
         if grew_nodes {
             self.drawn = drawn_buffer(gpu, self.nodes.records);
+            self.normal_sums = sums_buffer(gpu, self.nodes.records);
         }
         if grew_nodes || grew_cells {
             self.groups = None;
@@ -228,7 +268,7 @@ impl Renderer {
         a + b
     }
 
-    fn groups(&mut self, gpu: &Gpu) -> &[wgpu::BindGroup; 3] {
+    fn groups(&mut self, gpu: &Gpu) -> &[wgpu::BindGroup; 5] {
         let dev = &gpu.device;
         self.groups.get_or_insert_with(|| {
             fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
@@ -251,6 +291,20 @@ impl Renderer {
                 dev.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("relief draw"),
                     layout: &self.layout_draw,
+                    entries: &[
+                        entry(0, &self.cells.buffer),
+                        entry(1, &self.drawn),
+                        entry(2, &self.normal_sums),
+                    ],
+                }),
+                dev.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("relief normal sums"),
+                    layout: &self.layout_sums,
+                    entries: &[entry(1, &self.normal_sums)],
+                }),
+                dev.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("relief mesh"),
+                    layout: &self.layout_mesh,
                     entries: &[entry(0, &self.cells.buffer), entry(1, &self.drawn)],
                 }),
             ]
@@ -282,6 +336,25 @@ impl Renderer {
         pass.dispatch_workgroups(x, y, 1);
     }
 
+    /// Clears the normal sums and adds every drawn triangle's unit normal to its corners'.
+    fn encode_normals(&mut self, gpu: &Gpu, enc: &mut wgpu::CommandEncoder) {
+        enc.clear_buffer(&self.normal_sums, 0, None);
+        let triangles = self.used.1 * CELL_WORDS / 3;
+        let workgroups = triangles.max(1).div_ceil(64) as u32;
+        let (x, y) = (workgroups.min(65_535), workgroups.div_ceil(65_535));
+        let normals = self.normals.clone();
+        let groups = self.groups(gpu);
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("relief normals"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&normals);
+        pass.set_bind_group(0, &groups[0], &[]);
+        pass.set_bind_group(1, &groups[3], &[]);
+        pass.set_bind_group(2, &groups[4], &[]);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+
     /// Draws the scene into `target` (of the lens's size).
     pub fn render(&mut self, gpu: &Gpu, target: &wgpu::TextureView, f: &FrameParams) {
         gpu.queue
@@ -290,6 +363,7 @@ impl Renderer {
         let draw = match f.morph {
             MorphStage::Compute => {
                 self.encode_morph(gpu, &mut enc);
+                self.encode_normals(gpu, &mut enc);
                 self.draw_pre.clone()
             }
             MorphStage::Vertex => self.draw.clone(),
@@ -320,6 +394,16 @@ impl Renderer {
             .map(|v| Vec3::new(v[0], v[1], v[2]))
             .collect())
     }
+}
+
+/// The normal sums: four `i32` per node slot, cleared each frame.
+fn sums_buffer(gpu: &Gpu, records: usize) -> wgpu::Buffer {
+    gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("relief normal sums"),
+        size: (records.max(1) * 16) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
 fn drawn_buffer(gpu: &Gpu, records: usize) -> wgpu::Buffer {

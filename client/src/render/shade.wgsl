@@ -33,6 +33,8 @@ struct VOut {
     @location(2) height: f32,
     // 1 on a tile's crack patch or skirt (tinted under the wireframe), else 0.
     @location(3) crack: f32,
+    // Smooth normal (any length), or zero where a pass has none: then the triangle's flat one.
+    @location(4) normal: vec3<f32>,
 };
 
 // Hypsometric colour ramp in metres above sea level (linear RGB), so that a colour means the
@@ -66,10 +68,13 @@ fn ramp(h: f32) -> vec3<f32> {
 
 @fragment
 fn fs(in: VOut) -> @location(0) vec4<f32> {
-    // Flat normal of the drawn (morphed) triangle.
+    // The smooth normal where the pass gives one, else the drawn (morphed) triangle's flat one.
     var n = normalize(cross(dpdx(in.rel), dpdy(in.rel)));
     if (n.z < 0.0) {
         n = -n;
+    }
+    if (dot(in.normal, in.normal) > 1.0e-12) {
+        n = normalize(in.normal);
     }
     let base = ramp(in.height);
     let lambert = max(dot(n, frame.light.xyz), 0.0);

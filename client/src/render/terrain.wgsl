@@ -23,6 +23,12 @@ struct Node {
 @group(1) @binding(0) var<storage, read_write> drawn_out: array<vec4<f32>>;
 @group(2) @binding(0) var<storage, read> cells: array<u32>;
 @group(2) @binding(1) var<storage, read> drawn: array<vec4<f32>>;
+// Smooth normals, 4 words per node slot: the sum of the unit normals of the drawn triangles
+// around the node, in units of 1/NORMAL_SCALE (written by `normals`, read by `vs_pre`).
+@group(1) @binding(1) var<storage, read_write> normal_sums: array<atomic<i32>>;
+@group(2) @binding(2) var<storage, read> normals: array<i32>;
+
+const NORMAL_SCALE: f32 = 1024.0;
 
 // Screen error of a box (relief_proto::view::ViewState::error_of).
 fn screen_error(b0: vec3<f32>, b1: vec3<f32>, err: f32) -> f32 {
@@ -93,6 +99,37 @@ fn morph(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) 
     drawn_out[i] = vec4<f32>(drawn_position(i), 1.0);
 }
 
+// Smooth per-vertex normals of the drawn (geomorphed) mesh: each triangle adds its upward unit
+// normal to its three corners' sums (fixed point, for integer atomics). Runs after `morph`,
+// over every triangle slot; the buffer is cleared before.
+@compute @workgroup_size(64)
+fn normals_pass(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let t = id.x + id.y * groups.x * 64u;
+    if (3u * t + 2u >= arrayLength(&cells)) {
+        return;
+    }
+    let s = vec3<u32>(cells[3u * t], cells[3u * t + 1u], cells[3u * t + 2u]);
+    if (s.x == NONE || s.y == NONE || s.z == NONE) {
+        return;
+    }
+    let a = drawn[s.x].xyz;
+    let c = cross(drawn[s.y].xyz - a, drawn[s.z].xyz - a);
+    let len = length(c);
+    if (len <= 0.0) {
+        return;
+    }
+    var n = c / len;
+    if (n.z < 0.0) {
+        n = -n;
+    }
+    let q = vec3<i32>(round(n * NORMAL_SCALE));
+    for (var k = 0u; k < 3u; k++) {
+        atomicAdd(&normal_sums[4u * s[k]], q.x);
+        atomicAdd(&normal_sums[4u * s[k] + 1u], q.y);
+        atomicAdd(&normal_sums[4u * s[k] + 2u], q.z);
+    }
+}
+
 // Vertex pulling: the vertex index walks the cell records, three slots a triangle.
 fn pulled(vi: u32, morph_here: bool) -> VOut {
     var o: VOut;
@@ -105,13 +142,21 @@ fn pulled(vi: u32, morph_here: bool) -> VOut {
         o.clip = vec4<f32>(2.0, 2.0, 2.0, 1.0);
         o.rel = vec3<f32>(0.0);
         o.height = 0.0;
+        o.normal = vec3<f32>(0.0);
         return o;
     }
     var p: vec3<f32>;
     if (morph_here) {
         p = drawn_position(slot);
+        // No normals pass for this path: the fragment shader uses the flat normal.
+        o.normal = vec3<f32>(0.0);
     } else {
         p = drawn[slot].xyz;
+        o.normal = vec3<f32>(
+            f32(normals[4u * slot]),
+            f32(normals[4u * slot + 1u]),
+            f32(normals[4u * slot + 2u]),
+        );
     }
     let rel = p - frame.eye.xyz;
     o.clip = frame.view_proj * vec4<f32>(rel, 1.0);

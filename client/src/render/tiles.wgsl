@@ -30,5 +30,7 @@ fn vs_tile(@builtin(vertex_index) vi: u32, @builtin(instance_index) tile: u32) -
     o.clip = frame.view_proj * vec4<f32>(rel, 1.0);
     o.rel = rel;
     o.height = p.z;
+    // Flat shading for tiles (no per-vertex normals yet).
+    o.normal = vec3<f32>(0.0);
     return o;
 }
