@@ -28,6 +28,11 @@ pub struct TileMesh {
     /// Vertices, world metres, four floats each: x, y, z and the morph target's z (the same z
     /// for the patches' and skirts' extra vertices).
     pub positions: Vec<f32>,
+    /// Smooth normals, four floats a vertex: x and y of the unit upward normal of the tile's own
+    /// mesh, then of the morph target's (z follows, as the normals point up). The sum of the
+    /// unit normals of the mesh triangles around each vertex, so a tile's boundary vertices see
+    /// only its own triangles; a vertex of patches or skirts alone has none (0, 0).
+    pub normals: Vec<f32>,
     /// Vertex indices, three a triangle: the mesh, the dropped patches, the raised patches,
     /// then the skirts.
     pub indices: Vec<u32>,
@@ -51,7 +56,7 @@ impl TileMesh {
             .flat_map(|tris| tris.iter().flatten().copied())
             .collect();
         let targets = morph_targets(tile);
-        let positions = t
+        let positions: Vec<f32> = t
             .positions
             .iter()
             .enumerate()
@@ -60,8 +65,10 @@ impl TileMesh {
                 [p[0], p[1], p[2], target]
             })
             .collect();
+        let normals = smooth_normals(&positions, &t.mesh);
         TileMesh {
             positions,
+            normals,
             indices,
             counts,
         }
@@ -181,6 +188,35 @@ impl TileScene {
 
 /// Whether tile `i`, newly active, replaced a coarser tile: one of its ancestors was active
 /// `before` (the active set covers the terrain once, so otherwise finer tiles were, or none).
+/// [`TileMesh::normals`] of `positions` (x, y, z, target z) under the triangles `mesh`.
+fn smooth_normals(positions: &[f32], mesh: &[[u32; 3]]) -> Vec<f32> {
+    let n = positions.len() / 4;
+    let mut sums = vec![[glam::Vec3::ZERO; 2]; n];
+    let at = |v: u32, k: usize| {
+        let p = &positions[4 * v as usize..4 * v as usize + 4];
+        glam::Vec3::new(p[0], p[1], p[2 + k])
+    };
+    for tri in mesh {
+        let face = |k: usize| {
+            let [a, b, c] = tri.map(|v| at(v, k));
+            let f = (b - a).cross(c - a).normalize_or_zero();
+            if f.z < 0.0 { -f } else { f }
+        };
+        let (own, target) = (face(0), face(1));
+        for &v in tri {
+            let s = &mut sums[v as usize];
+            s[0] += own;
+            s[1] += target;
+        }
+    }
+    sums.iter()
+        .flat_map(|[own, target]| {
+            let (o, t) = (own.normalize_or_zero(), target.normalize_or_zero());
+            [o.x, o.y, t.x, t.y]
+        })
+        .collect()
+}
+
 fn split_child(shape: &TileShape, before: &FxHashSet<u32>, i: u32) -> bool {
     let mut t = shape.tile(i).and_then(|t| t.parent());
     while let Some(p) = t {
@@ -286,5 +322,25 @@ mod tests {
         assert!(!split_child(&shape, &before, index(2, 3, 0)));
         assert!(!split_child(&shape, &before, index(1, 1, 0)), "a merge");
         assert!(!split_child(&shape, &FxHashSet::default(), index(2, 0, 0)));
+    }
+
+    #[test]
+    fn smooth_normals_follow_the_slope_of_each_mesh() {
+        // Two triangles of a unit square: the own heights rise with x (z = x), the target's
+        // are flat.
+        let positions = [
+            [0.0, 0.0, 0.0, 5.0],
+            [1.0, 0.0, 1.0, 5.0],
+            [1.0, 1.0, 1.0, 5.0],
+            [0.0, 1.0, 0.0, 5.0],
+        ]
+        .concat();
+        let n = smooth_normals(&positions, &[[0, 1, 2], [0, 2, 3]]);
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        for v in 0..4 {
+            let [x, y, tx, ty] = [n[4 * v], n[4 * v + 1], n[4 * v + 2], n[4 * v + 3]];
+            assert!((x + h).abs() < 1e-5 && y.abs() < 1e-5, "{v}: {x} {y}");
+            assert!(tx.abs() < 1e-6 && ty.abs() < 1e-6);
+        }
     }
 }

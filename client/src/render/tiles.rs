@@ -37,7 +37,7 @@ pub struct TileRenderer {
     arrivals: wgpu::Buffer,
     /// Its capacity, floats.
     arrivals_cap: usize,
-    /// Group 1's layout: a tile's positions and indices.
+    /// Group 1's layout: a tile's positions, indices and normals.
     layout_tile: wgpu::BindGroupLayout,
     /// Buffers of the tiles held, by dense index.
     tiles: FxHashMap<u32, GpuTile>,
@@ -118,7 +118,7 @@ impl TileRenderer {
         });
         let layout_tile = dev.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("relief tile"),
-            entries: &[storage(0), storage(1)],
+            entries: &[storage(0), storage(1), storage(2)],
         });
         let layout = dev.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("relief tiles"),
@@ -190,7 +190,7 @@ impl TileRenderer {
             let Some(mesh) = scene.meshes.get(&i) else {
                 continue;
             };
-            bytes += 4 * (mesh.positions.len() + mesh.indices.len());
+            bytes += 4 * (mesh.positions.len() + mesh.normals.len() + mesh.indices.len());
             let tile = self.gpu_tile(gpu, mesh);
             self.tiles.insert(i, tile);
         }
@@ -226,6 +226,14 @@ impl TileRenderer {
                 &mesh.positions[..]
             }),
         );
+        let normals = buffer(
+            "relief tile normals",
+            bytemuck::cast_slice(if mesh.normals.is_empty() {
+                &[0.0f32; 4]
+            } else {
+                &mesh.normals[..]
+            }),
+        );
         // The mesh's triangle count first: the shader tints what follows (patches, skirts).
         let mut words = Vec::with_capacity(1 + mesh.indices.len());
         words.push(mesh.counts[0]);
@@ -242,6 +250,10 @@ impl TileRenderer {
                 wgpu::BindGroupEntry {
                     binding: 1,
                     resource: indices.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: normals.as_entire_binding(),
                 },
             ],
         });

@@ -12,6 +12,9 @@
 // The mesh's triangle count, then the tile's triangles' vertex indices: mesh, dropped
 // patches, raised patches, skirts.
 @group(1) @binding(1) var<storage, read> indices: array<u32>;
+// The tile's smooth normals (`TileMesh::normals`): x, y of its own mesh's, then of the morph
+// target's; z follows, as they point up.
+@group(1) @binding(2) var<storage, read> normals: array<vec4<f32>>;
 
 @vertex
 fn vs_tile(@builtin(vertex_index) vi: u32, @builtin(instance_index) tile: u32) -> VOut {
@@ -19,7 +22,8 @@ fn vs_tile(@builtin(vertex_index) vi: u32, @builtin(instance_index) tile: u32) -
     let corner = vi % 3u;
     o.bary = vec3<f32>(f32(corner == 0u), f32(corner == 1u), f32(corner == 2u));
     o.crack = f32(vi / 3u >= indices[0]);
-    let q = positions[indices[vi + 1u]];
+    let v = indices[vi + 1u];
+    let q = positions[v];
     // alpha: 0 on arrival, 1 after the growth duration (1 at once without one).
     var alpha = 1.0;
     if (frame.morph.z > 0.0) {
@@ -30,7 +34,9 @@ fn vs_tile(@builtin(vertex_index) vi: u32, @builtin(instance_index) tile: u32) -
     o.clip = frame.view_proj * vec4<f32>(rel, 1.0);
     o.rel = rel;
     o.height = p.z;
-    // Flat shading for tiles (no per-vertex normals yet).
-    o.normal = vec3<f32>(0.0);
+    // Morphed like the heights; patches and skirts shade flat (a zero normal).
+    let nv = normals[v];
+    let nxy = mix(nv.zw, nv.xy, alpha);
+    o.normal = vec3<f32>(nxy, sqrt(max(1.0 - dot(nxy, nxy), 0.0))) * (1.0 - o.crack);
     return o;
 }
