@@ -41,6 +41,45 @@ pub(crate) fn colour_target(format: wgpu::TextureFormat) -> [Option<wgpu::ColorT
     })]
 }
 
+/// A terrain render pipeline: triangles pulled by the vertex shader `vs` (no vertex buffers),
+/// drawn from both faces (geomorphs may fold a triangle for a moment; crack patches and skirts
+/// are vertical and face either way), with the shared depth test and colour target.
+pub(crate) fn terrain_pipeline(
+    gpu: &Gpu,
+    label: &str,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    vs: &str,
+    format: wgpu::TextureFormat,
+) -> wgpu::RenderPipeline {
+    gpu.device
+        .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(label),
+            layout: Some(layout),
+            vertex: wgpu::VertexState {
+                module,
+                entry_point: Some(vs),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(depth_state()),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &colour_target(format),
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+}
+
 /// The uniform buffer of the `Frame` block.
 pub(crate) fn frame_buffer(gpu: &Gpu) -> wgpu::Buffer {
     gpu.device.create_buffer(&wgpu::BufferDescriptor {

@@ -194,33 +194,9 @@ impl Renderer {
             compilation_options: Default::default(),
             cache: None,
         });
+        // Geomorphs may fold a triangle for a moment: both faces are drawn.
         let pipeline = |vs: &str| {
-            dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("relief terrain"),
-                layout: Some(&draw_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some(vs),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    // Geomorphs may fold a triangle for a moment: draw both faces.
-                    cull_mode: None,
-                    ..Default::default()
-                },
-                depth_stencil: Some(pass::depth_state()),
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs"),
-                    compilation_options: Default::default(),
-                    targets: &pass::colour_target(format),
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
+            pass::terrain_pipeline(gpu, "relief terrain", &draw_layout, &module, vs, format)
         };
         let (draw, draw_pre) = (pipeline("vs"), pipeline("vs_pre"));
         let frame = pass::frame_buffer(gpu);

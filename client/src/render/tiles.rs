@@ -125,32 +125,9 @@ impl TileRenderer {
             bind_group_layouts: &[Some(&layout_frame), Some(&layout_tile)],
             immediate_size: 0,
         });
-        let pipeline = dev.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("relief tiles"),
-            layout: Some(&layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_tile"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                // Crack patches and skirts are vertical and face either way.
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(pass::depth_state()),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs"),
-                compilation_options: Default::default(),
-                targets: &pass::colour_target(format),
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        // Crack patches and skirts are vertical and face either way: no culling.
+        let pipeline =
+            pass::terrain_pipeline(gpu, "relief tiles", &layout, &module, "vs_tile", format);
         let frame = pass::frame_buffer(gpu);
         let arrivals_cap = 256;
         let arrivals = arrival_buffer(gpu, arrivals_cap);
