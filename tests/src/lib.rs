@@ -249,3 +249,13 @@ pub async fn fly(
     }
     s
 }
+
+/// The crack tests' three views of a path camera: as it is, looking down 80 degrees (the
+/// terrain fills the frame) and grazing 3 degrees down (cracks open widest).
+pub fn crack_views(cam: Camera) -> [Camera; 3] {
+    let tilt = |deg: f32| Camera {
+        pitch: (-deg).to_radians(),
+        ..cam
+    };
+    [cam, tilt(80.0), tilt(3.0)]
+}

@@ -206,15 +206,8 @@ async fn no_background_shows_through_the_terrain() {
         }
         // Mid-growth for this pose's splits, and mid-morph for nodes near tau.
         let now = t + 0.1;
-        let down = Camera {
-            pitch: -80f32.to_radians(),
-            ..*cam
-        };
-        let grazing = Camera {
-            pitch: -3f32.to_radians(),
-            ..*cam
-        };
-        for c in [*cam, down, grazing] {
+        let views = relief_tests::crack_views(*cam);
+        for c in views {
             let p = rig.params(c, now, MorphRule::new(1.0), bg);
             let drawn = rig.drawn(&gpu, &p);
             morphing += rig.morphing(&drawn);
@@ -226,7 +219,7 @@ async fn no_background_shows_through_the_terrain() {
                 img.save(&f).unwrap();
                 holes.push((k, c.pitch.to_degrees(), n, f));
             }
-            if c == down {
+            if c == views[1] {
                 let total = img.pixels().filter(|p| [p[0], p[1], p[2]] == bg).count();
                 assert_eq!(total, 0, "pose {k}: looking down, terrain fills the frame");
             }

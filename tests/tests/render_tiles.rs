@@ -13,7 +13,7 @@ use relief_client::render::offscreen::{FORMAT, Offscreen, enclosed_background};
 use relief_client::render::{FrameParams, Gpu, TileRenderer, TileScene};
 use relief_client::session::{Session, SessionConfig};
 use relief_proto::msg::{CrackMode, StreamKind, TileStreamParams};
-use relief_proto::view::{Camera, Lens};
+use relief_proto::view::Lens;
 use relief_server::serve::config::{Limits, ServeConfig, TerrainSource};
 use relief_tests::{TestServer, path};
 use std::time::Instant;
@@ -110,15 +110,8 @@ async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes)
             .iter()
             .map(|&i| shape.tile(i).unwrap().level)
             .collect();
-        let down = Camera {
-            pitch: -80f32.to_radians(),
-            ..*cam
-        };
-        let grazing = Camera {
-            pitch: -3f32.to_radians(),
-            ..*cam
-        };
-        for c in [*cam, down, grazing] {
+        let views = relief_tests::crack_views(*cam);
+        for c in views {
             for (dropped_only, holes) in [(false, &mut all), (true, &mut dropped)] {
                 let p = FrameParams {
                     background: rgb8(BG),
@@ -135,7 +128,7 @@ async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes)
                     }
                     holes.at.push((k, c.pitch.to_degrees().round(), n));
                 }
-                if c == down && !dropped_only && crack != CrackMode::None {
+                if c == views[1] && !dropped_only && crack != CrackMode::None {
                     let total = img.pixels().filter(|p| [p[0], p[1], p[2]] == BG).count();
                     assert_eq!(total, 0, "pose {k}: looking down, the tiles fill the frame");
                 }
