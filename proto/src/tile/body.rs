@@ -385,13 +385,14 @@ pub fn grid_height(span: &TileSpan, z: &[f32], col: f32, row: f32) -> f32 {
     let (r0, r1) = (span.row(j) as f32, span.row(j + 1) as f32);
     let u = ((col - c0) / (c1 - c0)).clamp(0.0, 1.0);
     let v = ((row - r0) / (r1 - r0)).clamp(0.0, 1.0);
-    let at = (j * nx + i) as usize;
-    let (z00, z10, z01, z11) = (
-        z[at],
-        z[at + 1],
-        z[at + nx as usize],
-        z[at + nx as usize + 1],
-    );
+    let (at, w) = ((j * nx + i) as usize, nx as usize);
+    cell_height([z[at], z[at + 1], z[at + w], z[at + w + 1]], u, v)
+}
+
+/// Height inside one grid cell with corner heights `[north-west, north-east, south-west,
+/// south-east]` at `u` east and `v` south (both 0..1), on the cell's two triangles split along
+/// the north-west to south-east diagonal.
+pub fn cell_height([z00, z10, z01, z11]: [f32; 4], u: f32, v: f32) -> f32 {
     if u <= v {
         z00 + v * (z01 - z00) + u * (z11 - z01)
     } else {

@@ -11,7 +11,7 @@
 //! could open cracks that no patch closes.
 
 use super::EDGES;
-use super::body::{grid_triangles, skirt_triangle_count};
+use super::body::{cell_height, grid_triangles, skirt_triangle_count};
 use super::mirror::TileData;
 use crate::tree::WorldFrame;
 
@@ -97,34 +97,26 @@ pub fn morph_targets(tile: &TileData) -> Vec<f32> {
         v
     };
     let (px, py) = (lines(nx), lines(ny));
-    let bracket = |lines: &[usize], i: usize| {
+    // The parent's lines around index `i` of `lines`, and where `i` lies between them (0..1).
+    let bracket = |lines: &[usize], i: usize, pos: &dyn Fn(usize) -> f32| {
         let k = lines.partition_point(|&l| l <= i) - 1;
-        (lines[k], lines[(k + 1).min(lines.len() - 1)])
-    };
-    let mut out = own.clone();
-    for j in 1..ny - 1 {
-        let (j0, j1) = bracket(&py, j);
-        let (r0, r1) = (span.row(j0 as u32) as f32, span.row(j1 as u32) as f32);
-        let v = if j1 > j0 {
-            (span.row(j as u32) as f32 - r0) / (r1 - r0)
+        let (a, b) = (lines[k], lines[(k + 1).min(lines.len() - 1)]);
+        let t = if b > a {
+            (pos(i) - pos(a)) / (pos(b) - pos(a))
         } else {
             0.0
         };
+        (a, b, t)
+    };
+    let col = |i: usize| span.col(i as u32) as f32;
+    let row = |j: usize| span.row(j as u32) as f32;
+    let mut out = own.clone();
+    for j in 1..ny - 1 {
+        let (j0, j1, v) = bracket(&py, j, &row);
         for i in 1..nx - 1 {
-            let (i0, i1) = bracket(&px, i);
-            let (c0, c1) = (span.col(i0 as u32) as f32, span.col(i1 as u32) as f32);
-            let u = if i1 > i0 {
-                (span.col(i as u32) as f32 - c0) / (c1 - c0)
-            } else {
-                0.0
-            };
+            let (i0, i1, u) = bracket(&px, i, &col);
             let at = |ii: usize, jj: usize| own[jj * nx + ii];
-            let (z00, z10, z01, z11) = (at(i0, j0), at(i1, j0), at(i0, j1), at(i1, j1));
-            out[j * nx + i] = if u <= v {
-                z00 + v * (z01 - z00) + u * (z11 - z01)
-            } else {
-                z00 + u * (z10 - z00) + v * (z11 - z10)
-            };
+            out[j * nx + i] = cell_height([at(i0, j0), at(i1, j0), at(i0, j1), at(i1, j1)], u, v);
         }
     }
     out
