@@ -7,13 +7,13 @@
 //! nodes tile the grid. Storing the interior set alone costs about a third of the active count.
 //!
 //! Both ends keep one: the server for each session, the client as the mirror it rebuilds from
-//! deltas. Each interior node may carry a small value `V` (the server keeps its next check time
-//! there); the client's cut carries none. Nodes are keyed by their dense index as a `u32`, which
-//! [`TreeShape`] guarantees to fit. The [`Cut::digest`] is an order-independent hash of the active set, kept up to date on
-//! every split and merge, that each delta carries so that a desync is detected, never silent.
+//! deltas. The interior set is a paged bitset ([`NodeSet`]): a test is a bit test and the memory
+//! follows the cut, not the terrain. The [`Cut::digest`] is an order-independent hash of the
+//! active set, kept up to date on every split and merge, that each delta carries so that a desync
+//! is detected, never silent.
 
+use crate::nodeset::NodeSet;
 use crate::tree::{NodeId, TreeShape};
-use rustc_hash::FxHashMap;
 
 /// A split or merge that the current cut does not allow.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
@@ -31,9 +31,9 @@ pub enum CutError {
 
 /// The set of interior nodes, plus the digest of the active set it implies.
 #[derive(Clone, Debug, Default)]
-pub struct Cut<V = ()> {
-    /// Dense indices ([`TreeShape::index`]) of the interior (split) nodes, with their values.
-    interior: FxHashMap<u32, V>,
+pub struct Cut {
+    /// The interior (split) nodes.
+    interior: NodeSet,
     /// Sum of [`node_hash`] over the active nodes, wrapping; see [`Cut::digest`].
     digest: u64,
     /// Number of active nodes, kept so that sizes are reported without a walk.
@@ -49,57 +49,47 @@ pub fn node_hash(index: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-impl Cut<()> {
+impl Cut {
     /// The coarsest cut: the root alone is active.
     pub fn root(shape: &TreeShape) -> Cut {
-        Cut::root_with(shape)
-    }
-}
-
-fn key(shape: &TreeShape, node: NodeId) -> u32 {
-    // TreeShape keeps every dense index below 2^32.
-    shape.index(node) as u32
-}
-
-impl<V: Copy + Default> Cut<V> {
-    /// The coarsest cut, for any value type.
-    pub fn root_with(shape: &TreeShape) -> Cut<V> {
         Cut {
-            interior: FxHashMap::default(),
+            interior: NodeSet::default(),
             digest: node_hash(shape.index(NodeId::ROOT)),
             active: 1,
         }
     }
 
-    /// The value of interior node `node`, if it is interior.
-    pub fn value(&self, shape: &TreeShape, node: NodeId) -> Option<V> {
-        self.interior.get(&key(shape, node)).copied()
-    }
-
-    /// The value of the interior node with dense index `index`, if it is interior.
-    pub fn value_at(&self, index: u32) -> Option<V> {
-        self.interior.get(&index).copied()
-    }
-
-    /// Sets the value of interior node `node`; no effect on other nodes.
-    pub fn set_value(&mut self, shape: &TreeShape, node: NodeId, value: V) {
-        if let Some(v) = self.interior.get_mut(&key(shape, node)) {
-            *v = value;
+    /// The same cut whose interior nodes carry a byte each ([`Cut::tag`], all 0), for an owner's
+    /// bookkeeping.
+    pub fn tagged(&self, shape: &TreeShape) -> Cut {
+        let mut interior = NodeSet::tagged();
+        for n in self.interior.iter() {
+            interior.insert(shape, n);
         }
-    }
-
-    /// The value of interior node `node`, for changing in place.
-    pub fn value_mut(&mut self, shape: &TreeShape, node: NodeId) -> Option<&mut V> {
-        self.interior.get_mut(&key(shape, node))
-    }
-
-    /// The same cut with every value reset to `W::default()`.
-    pub fn with_values<W: Copy + Default>(&self) -> Cut<W> {
         Cut {
-            interior: self.interior.keys().map(|&k| (k, W::default())).collect(),
+            interior,
             digest: self.digest,
             active: self.active,
         }
+    }
+
+    /// The byte of interior node `node` in a [`Cut::tagged`] cut (0 otherwise).
+    #[inline]
+    pub fn tag(&self, node: NodeId) -> u8 {
+        self.interior.tag(node)
+    }
+
+    /// Sets the byte of interior node `node` in a [`Cut::tagged`] cut.
+    #[inline]
+    pub fn set_tag(&mut self, node: NodeId, tag: u8) {
+        self.interior.set_tag(node, tag)
+    }
+
+    /// Adds one (wrapping) to the byte of interior node `node` in a [`Cut::tagged`] cut and
+    /// returns it.
+    #[inline]
+    pub fn bump_tag(&mut self, node: NodeId) -> u8 {
+        self.interior.bump_tag(node)
     }
 
     /// Order-independent digest of the active set.
@@ -117,14 +107,21 @@ impl<V: Copy + Default> Cut<V> {
         self.interior.len()
     }
 
-    /// Bytes of memory the interior set holds (table slots plus control bytes).
+    /// Bytes of memory the interior set holds.
     pub fn memory_bytes(&self) -> usize {
-        self.interior.capacity() * (std::mem::size_of::<(u32, V)>() + 1)
+        self.interior.memory_bytes()
     }
 
-    /// Whether `node` is interior (split).
-    pub fn is_interior(&self, shape: &TreeShape, node: NodeId) -> bool {
-        self.interior.contains_key(&key(shape, node))
+    /// Whether `node` is interior (split). Nodes outside the tree are not.
+    #[inline]
+    pub fn is_interior(&self, _shape: &TreeShape, node: NodeId) -> bool {
+        self.interior.contains(node)
+    }
+
+    /// Which of `node`'s children are interior: bit `k` for child `k` ([`NodeId::child`]).
+    #[inline]
+    pub fn interior_children(&self, node: NodeId) -> u8 {
+        self.interior.children_mask(node)
     }
 
     /// Whether `node` is active: its parent is interior (or it is the root) and it is not.
@@ -162,7 +159,7 @@ impl<V: Copy + Default> Cut<V> {
         if shape.is_leaf(node) || !self.is_active(shape, node) {
             return Err(CutError::NotSplittable(node));
         }
-        self.split_active(shape, node, V::default());
+        self.split_active(shape, node);
         Ok(())
     }
 
@@ -182,13 +179,13 @@ impl<V: Copy + Default> Cut<V> {
         Ok(())
     }
 
-    /// Splits `node` with `value`, for a caller that knows `node` is an active inner node (the
-    /// engines, which have just looked): one table insert instead of [`Cut::split`]'s checks.
-    /// Called on anything else it corrupts the cut (checked in debug builds).
-    pub fn split_active(&mut self, shape: &TreeShape, node: NodeId, value: V) {
+    /// Splits `node`, for a caller that knows `node` is an active inner node (the engines, which
+    /// have just looked): one bit set instead of [`Cut::split`]'s checks. Called on anything else
+    /// it corrupts the cut (checked in debug builds).
+    pub fn split_active(&mut self, shape: &TreeShape, node: NodeId) {
         debug_assert!(shape.contains(node) && !shape.is_leaf(node) && self.is_active(shape, node));
         let index = shape.index(node);
-        self.interior.insert(index as u32, value);
+        self.interior.insert(shape, node);
         self.digest = self.digest.wrapping_sub(node_hash(index));
         self.active -= 1;
         for (_, c) in shape.children(node) {
@@ -198,7 +195,7 @@ impl<V: Copy + Default> Cut<V> {
     }
 
     /// Merges `node`, for a caller that knows it is interior with only active children: one
-    /// table removal instead of [`Cut::merge`]'s checks. Called on anything else it corrupts
+    /// bit cleared instead of [`Cut::merge`]'s checks. Called on anything else it corrupts
     /// the cut (checked in debug builds).
     pub fn merge_interior(&mut self, shape: &TreeShape, node: NodeId) {
         debug_assert!(
@@ -208,7 +205,7 @@ impl<V: Copy + Default> Cut<V> {
                     .all(|(_, c)| !self.is_interior(shape, c))
         );
         let index = shape.index(node);
-        self.interior.remove(&(index as u32));
+        self.interior.remove(node);
         self.digest = self.digest.wrapping_add(node_hash(index));
         self.active += 1;
         for (_, c) in shape.children(node) {
@@ -217,9 +214,15 @@ impl<V: Copy + Default> Cut<V> {
         }
     }
 
-    /// The interior nodes' dense indices, in no particular order.
+    /// The interior nodes' dense indices, level by level, in no set order within a level.
     pub fn interior_indices(&self) -> impl Iterator<Item = u64> + '_ {
-        self.interior.keys().map(|&k| k as u64)
+        self.interior.iter().map(|n| self.interior.dense_index(n))
+    }
+
+    /// The interior nodes, level by level (parents before children), in no set order within a
+    /// level.
+    pub fn interior_nodes(&self) -> impl Iterator<Item = NodeId> + '_ {
+        self.interior.iter()
     }
 
     /// All active nodes, found by walking down from the root (for tests and snapshots).

@@ -29,6 +29,7 @@ pub mod haar;
 pub mod mesh;
 pub mod mirror;
 pub mod msg;
+pub mod nodeset;
 pub mod path;
 pub mod snapshot;
 pub mod terrain;

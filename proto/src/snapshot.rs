@@ -51,7 +51,7 @@ pub enum SnapshotError {
 
 impl Snapshot {
     /// The snapshot of `cut`.
-    pub fn of<V: Copy + Default>(shape: &TreeShape, cut: &Cut<V>) -> Snapshot {
+    pub fn of(shape: &TreeShape, cut: &Cut) -> Snapshot {
         let mut bits = Vec::with_capacity(cut.interior_count() / 2 + 1);
         let mut n_bits = 0usize;
         let mut stack = vec![NodeId::ROOT];

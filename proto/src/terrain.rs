@@ -49,14 +49,21 @@ impl TerrainGeometry {
     /// its static error in z. The static error bounds how far any sample of the subtree
     /// lies from the node's height, so the box holds the whole subtree; and because it is built
     /// only from what a split carries, the client computes exactly the server's box.
+    #[inline]
     pub fn node_box(&self, node: NodeId, zq: i32, err_code: u8) -> Aabb {
+        self.node_box_with(node, zq, error_value(err_code))
+    }
+
+    /// [`TerrainGeometry::node_box`] for a node whose static error is `e` metres (the value of
+    /// its error code), for callers that keep their own table of code values.
+    #[inline]
+    pub fn node_box_with(&self, node: NodeId, zq: i32, e: f32) -> Aabb {
         let s = self.shape.depth() - node.level;
         let (c0, r0) = ((node.x as u64) << s, (node.y as u64) << s);
         let (c1, r1) = (c0 + (1u64 << s) - 1, r0 + (1u64 << s) - 1);
         let (x0, y1) = self.frame.to_world(c0 as f32, r0 as f32);
         let (x1, y0) = self.frame.to_world(c1 as f32, r1 as f32);
         let z = zq as f32 * self.z_quantum;
-        let e = error_value(err_code);
         Aabb {
             min: Vec3::new(x0, y0, z - e),
             max: Vec3::new(x1, y1, z + e),

@@ -147,6 +147,7 @@ impl TreeShape {
     }
 
     /// Nodes per row and per column at `level`.
+    #[inline]
     pub fn level_dims(&self, level: u8) -> (u32, u32) {
         self.dims[level as usize]
     }
@@ -171,6 +172,7 @@ impl TreeShape {
 
     /// Dense index of an existing node: levels in order, rows in order within a level.
     /// Parents always have smaller indices than their children.
+    #[inline]
     pub fn index(&self, node: NodeId) -> u64 {
         let (w, _) = self.dims[node.level as usize];
         self.offsets[node.level as usize] + node.y as u64 * w as u64 + node.x as u64
@@ -243,6 +245,7 @@ pub struct WorldFrame {
 
 impl WorldFrame {
     /// World x, y of a grid position (column, row).
+    #[inline]
     pub fn to_world(&self, col: f32, row: f32) -> (f32, f32) {
         (col * self.dx, (self.rows as f32 - 1.0 - row) * self.dy)
     }

@@ -97,6 +97,9 @@ struct BenchArgs {
     /// on large ones, never fewer than 60 frames].
     #[arg(long)]
     px_every: Option<usize>,
+    /// Fly only the path's first N poses, e.g. for a profile [default: all].
+    #[arg(long, value_parser = clap::value_parser!(u64).range(2..))]
+    poses: Option<u64>,
     /// Print one JSON object instead of a table.
     #[arg(long)]
     json: bool,
@@ -249,6 +252,7 @@ fn run() -> anyhow::Result<()> {
                     ..LodParams::default()
                 },
                 px_every: run.px_every,
+                poses: run.poses.map(|n| n as usize),
                 progress: !run.dem_args.quiet,
                 ..LodBenchOptions::default()
             };
@@ -270,6 +274,7 @@ fn run() -> anyhow::Result<()> {
                 crack: crack.into(),
                 tile_size,
                 px_every: run.px_every,
+                poses: run.poses.map(|n| n as usize),
                 progress: !run.dem_args.quiet,
                 ..Default::default()
             };

@@ -33,7 +33,7 @@ pub struct FanMesh {
 
 impl FanMesh {
     /// The mesh of `cut`, built from the corners of its active nodes.
-    pub fn new<V: Copy + Default>(shape: &TreeShape, cut: &Cut<V>) -> FanMesh {
+    pub fn new(shape: &TreeShape, cut: &Cut) -> FanMesh {
         let mut m = FanMesh::default();
         for n in cut.active_nodes(shape) {
             for cell in corner_cells(shape, n) {
@@ -45,12 +45,7 @@ impl FanMesh {
     }
 
     /// Brings the mesh up to date after `node` has split or merged in `cut`.
-    pub fn update_around<V: Copy + Default>(
-        &mut self,
-        shape: &TreeShape,
-        cut: &Cut<V>,
-        node: NodeId,
-    ) {
+    pub fn update_around(&mut self, shape: &TreeShape, cut: &Cut, node: NodeId) {
         let mut cells: Vec<(u32, u32)> = corner_cells(shape, node).collect();
         for (_, c) in shape.children(node) {
             cells.extend(corner_cells(shape, c));
@@ -98,12 +93,7 @@ impl FanMesh {
         self.work
     }
 
-    fn recompute<V: Copy + Default>(
-        &mut self,
-        shape: &TreeShape,
-        cut: &Cut<V>,
-        (c, r): (u32, u32),
-    ) {
+    fn recompute(&mut self, shape: &TreeShape, cut: &Cut, (c, r): (u32, u32)) {
         self.work += 1;
         let at = |cc, rr| cut.active_ancestor(shape, cc, rr);
         let tris = cell_triangles(at(c, r), at(c + 1, r), at(c, r + 1), at(c + 1, r + 1));
@@ -136,12 +126,7 @@ fn corner_cells(shape: &TreeShape, node: NodeId) -> impl Iterator<Item = (u32, u
 /// Adds the cells centred on `node`'s block boundary at the corners of the active nodes just
 /// outside each edge. Those neighbours are disjoint from the block, so the corners on their side
 /// facing the block lie exactly on the block's edge line.
-fn neighbour_corner_cells<V: Copy + Default>(
-    shape: &TreeShape,
-    cut: &Cut<V>,
-    node: NodeId,
-    out: &mut Vec<(u32, u32)>,
-) {
+fn neighbour_corner_cells(shape: &TreeShape, cut: &Cut, node: NodeId, out: &mut Vec<(u32, u32)>) {
     let (c0, r0, c1, r1) = shape.block(node);
     let (w, h) = (shape.width(), shape.height());
     // A cell (c, r) exists when its four samples do: c + 1 < w and r + 1 < h.

@@ -8,7 +8,7 @@ use crate::tree::TreeShape;
 ///
 /// It paints each active node's index over its sample block (so each sample's active ancestor is
 /// one array read), then emits the two triangles of every cell: O(W x H) time and memory.
-pub fn oracle<V: Copy + Default>(shape: &TreeShape, cut: &Cut<V>) -> Vec<Tri> {
+pub fn oracle(shape: &TreeShape, cut: &Cut) -> Vec<Tri> {
     let (w, h) = (shape.width() as usize, shape.height() as usize);
     let active = cut.active_nodes(shape);
     let mut owner = vec![0u32; w * h];

@@ -28,6 +28,14 @@ pub struct Flight {
 }
 
 impl Flight {
+    /// The same flight cut to its first `poses` poses (`None`: unchanged).
+    pub fn first_poses(mut self, poses: Option<usize>) -> Flight {
+        if let Some(n) = poses {
+            self.cams.truncate(n.max(2));
+        }
+        self
+    }
+
     /// Builds the store of `dem` (tiles of `tile_size` cells) in a temporary folder and the
     /// camera path `path` over it. `px_every` `None` picks k so that at least 60 frames and
     /// about 20 M samples are measured.

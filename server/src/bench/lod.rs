@@ -40,6 +40,8 @@ pub struct LodBenchOptions {
     pub px_min_samples: u64,
     /// Check the incremental mesh against the oracle on this many evenly spread frames.
     pub oracle_frames: usize,
+    /// Fly only the path's first poses (`None`: all of them).
+    pub poses: Option<usize>,
     /// Show progress on stderr.
     pub progress: bool,
 }
@@ -52,6 +54,7 @@ impl Default for LodBenchOptions {
             px_every: None,
             px_min_samples: 4_000_000,
             oracle_frames: 12,
+            poses: None,
             progress: false,
         }
     }
@@ -98,6 +101,18 @@ pub struct LodBenchReport {
     pub paper_pass_us_median: f64,
     /// Poses where the full pass's cut differed from the session's (must be 0).
     pub paper_pass_mismatches: u64,
+    /// Splits plus merges per pose: median.
+    pub changes_median: f64,
+    /// Splits plus merges per pose: 90th percentile.
+    pub changes_p90: f64,
+    /// Server update time (update and wire encoding) per change, nanoseconds: median over the
+    /// poses that changed anything.
+    pub server_ns_per_change_median: f64,
+    /// Client time (decode, mirror, fans) per change, nanoseconds: median over the poses that
+    /// changed anything.
+    pub client_ns_per_change_median: f64,
+    /// Screen errors the session evaluated per change, over the whole flight.
+    pub evaluations_per_change: f64,
     /// Screen errors the session evaluated per pose, median.
     pub nodes_visited_median: f64,
     /// Screen errors the full pass evaluated per pose, median.
@@ -136,6 +151,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         opts.px_min_samples,
         opts.progress,
     )?;
+    let flight = flight.first_poses(opts.poses);
     let store = &flight.store;
     let engine = VertexEngine::new(store);
     let geom = store.geometry();
@@ -149,7 +165,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
     let oracle_every = (frames / opts.oracle_frames.max(1)).max(1);
 
     // Session start: the initial cut, sent as one delta of splits.
-    let root_z = store.z()[0];
+    let root_z = store.root_z();
     let mut mirror = Mirror::new(geom, root_z);
     let view0 = ViewState::new(&cams[0], &lens);
     let mut session = VertexSession::new(&engine, &view0, &p);
@@ -204,6 +220,13 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         r.bytes += bytes.len() as u64;
         r.splits += delta.splits.len() as u64;
         r.merges += delta.merges.len() as u64;
+        let changes = (delta.splits.len() + delta.merges.len()) as f64;
+        r.changes.push(changes);
+        if changes > 0.0 {
+            let n = r.update_us.len() - 1;
+            r.server_ns.push(r.update_us[n] * 1e3 / changes);
+            r.client_ns.push(r.client_us[n] * 1e3 / changes);
+        }
         r.active.push(session.active_count() as f64);
         r.triangles.push(mesh.triangle_count() as f64);
         r.session_bytes.push(session.memory_bytes() as f64);
@@ -245,6 +268,12 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         cost: CostSummary::of(&r.update_us, &r.scratch_us, &r.client_us),
         paper_pass_us_median: median(&r.paper_us),
         paper_pass_mismatches: r.paper_mismatches,
+        changes_median: median(&r.changes),
+        changes_p90: quantile(&r.changes, 0.9),
+        server_ns_per_change_median: median(&r.server_ns),
+        client_ns_per_change_median: median(&r.client_ns),
+        evaluations_per_change: r.visited.iter().sum::<f64>()
+            / r.changes.iter().sum::<f64>().max(1.0),
         nodes_visited_median: median(&r.visited),
         paper_pass_visited_median: median(&r.paper_visited),
         active_nodes_median: median(&r.active),
@@ -276,6 +305,9 @@ struct Accum {
     paper_visited: Vec<f64>,
     paper_mismatches: u64,
     client_us: Vec<f64>,
+    changes: Vec<f64>,
+    server_ns: Vec<f64>,
+    client_ns: Vec<f64>,
     visited: Vec<f64>,
     active: Vec<f64>,
     triangles: Vec<f64>,

@@ -50,6 +50,8 @@ pub struct TileBenchOptions {
     pub px_every: Option<usize>,
     /// Minimum samples of each measured frame's lattice.
     pub px_min_samples: u64,
+    /// Fly only the path's first poses (`None`: all of them).
+    pub poses: Option<usize>,
     /// Show progress on stderr.
     pub progress: bool,
 }
@@ -63,6 +65,7 @@ impl Default for TileBenchOptions {
             tile_size: crate::store::DEFAULT_TILE_SIZE,
             px_every: None,
             px_min_samples: 4_000_000,
+            poses: None,
             progress: false,
         }
     }
@@ -203,6 +206,7 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         opts.px_min_samples,
         opts.progress,
     )?;
+    let flight = flight.first_poses(opts.poses);
     let store = &flight.store;
     let engine = TileEngine::new(store);
     let shape = engine.shape();

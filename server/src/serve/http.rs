@@ -195,7 +195,6 @@ pub async fn heights(
     }
     let g = t.store.geometry();
     let (w, h) = (g.shape.width(), g.shape.height());
-    let z = t.store.z();
     let out: Vec<Option<f32>> = req
         .points
         .iter()
@@ -205,8 +204,7 @@ pub async fn heights(
             if !(c >= 0.0 && r >= 0.0 && c < w as f32 && r < h as f32) {
                 return None;
             }
-            let leaf = g.shape.leaf(c as u32, r as u32);
-            Some(z[g.shape.index(leaf) as usize] as f32 * g.z_quantum)
+            Some(t.store.sample_z(c as u32, r as u32) as f32 * g.z_quantum)
         })
         .collect();
     Ok(Json(serde_json::json!({ "heights": out })).into_response())

@@ -32,7 +32,7 @@ impl Terrain {
             spacing_x: g.frame.dx,
             spacing_y: g.frame.dy,
             z_quantum: g.z_quantum,
-            root_z: store.z()[0],
+            root_z: store.root_z(),
             height_range: [
                 store.meta().height_min as f32,
                 store.meta().height_max as f32,

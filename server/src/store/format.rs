@@ -6,8 +6,9 @@
 //!   the offset and length of each section, the CRC-32 of the sections, and last the CRC-32 of
 //!   the header itself;
 //! - the sections, each aligned to 8 bytes so that they can be read in place from the map:
-//!   `z` (i32 per node), `err` (u8 per inner node), `zmin` and `zmax` (i32 per inner node),
-//!   `voids` (one bit per sample, row-major, 1 = no data in the source), `meta` (JSON), `tiles`
+//!   `nodes` (one u32 record per node, height and error code, children adjacent: see
+//!   [`super::layout`]), `voids` (one bit per sample, row-major, 1 = no data in the source),
+//!   `meta` (JSON), `tiles`
 //!   (one 32-byte [`super::tiles::TileRecord`] per tile by dense index) and `tile_data` (the
 //!   tiles' mesh and patch blobs).
 //!
@@ -21,20 +22,21 @@ use std::io::Write;
 /// File magic: the first eight bytes of every store.
 pub const MAGIC: &[u8; 8] = b"RELIEFST";
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 2;
+pub const VERSION: u32 = 3;
 /// Header size in bytes.
 pub const HEADER_LEN: usize = 256;
 /// Section order in the file.
-pub const SECTIONS: [&str; 8] = [
-    "z",
-    "err",
-    "zmin",
-    "zmax",
-    "voids",
-    "meta",
-    "tiles",
-    "tile_data",
-];
+pub const SECTIONS: [&str; 5] = ["nodes", "voids", "meta", "tiles", "tile_data"];
+/// Index of the node records in [`SECTIONS`].
+pub const NODES: usize = 0;
+/// Index of the void bits.
+pub const VOIDS: usize = 1;
+/// Index of the metadata.
+pub const META: usize = 2;
+/// Index of the tile records.
+pub const TILES: usize = 3;
+/// Index of the tile blobs.
+pub const TILE_DATA: usize = 4;
 /// Number of sections.
 pub const SECTION_COUNT: usize = SECTIONS.len();
 /// Where the body CRC sits in the header, after the section table.

@@ -10,14 +10,16 @@
 
 pub mod build;
 pub mod format;
+pub mod layout;
 mod mmap;
 pub mod tiles;
 
-use format::{HEADER_LEN, Header};
+use format::{HEADER_LEN, Header, META, NODES, TILE_DATA, TILES, VOIDS};
+use layout::{QuadLayout, rec_code, rec_z};
 use memmap2::Mmap;
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tile::{TileSetInfo, TileShape};
-use relief_proto::tree::NodeId;
+use relief_proto::tree::{NodeId, TreeShape};
 use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::path::Path;
@@ -149,15 +151,13 @@ pub fn write_store(
         source,
     };
     let tmp = path.with_extension("tmp-build");
+    let records = node_records(&geom.shape, &arrays)?;
     let mut file = std::io::BufWriter::new(File::create(&tmp).map_err(io)?);
     let size = format::write_sections(
         &mut file,
         header,
         [
-            bytemuck::cast_slice(&arrays.z),
-            &arrays.err,
-            bytemuck::cast_slice(&arrays.zmin),
-            bytemuck::cast_slice(&arrays.zmax),
+            bytemuck::cast_slice(&records),
             &voids,
             &meta,
             bytemuck::cast_slice(&pyramid.records),
@@ -169,6 +169,31 @@ pub fn write_store(
     file.sync_all().map_err(io)?;
     std::fs::rename(&tmp, path).map_err(io)?;
     Ok((size, build_s, tiles_s))
+}
+
+/// The tree's arrays as node records in the store's layout ([`layout`]).
+fn node_records(shape: &TreeShape, arrays: &build::TreeArrays) -> Result<Vec<u32>, StoreError> {
+    let lay = QuadLayout::new(shape);
+    let mut out = vec![0u32; lay.len() as usize];
+    let mut i = 0usize;
+    for level in 0..=shape.depth() {
+        let (w, h) = shape.level_dims(level);
+        for y in 0..h {
+            for x in 0..w {
+                let z = arrays.z[i];
+                if z.abs() > layout::Z_LIMIT {
+                    return Err(StoreError::Corrupt(format!(
+                        "a height of {z} z quanta does not fit the store's 24-bit heights; \
+                         build with a larger --z-quantum"
+                    )));
+                }
+                let code = arrays.err.get(i).copied().unwrap_or(0);
+                out[lay.slot(NodeId { level, x, y })] = layout::record(z, code);
+                i += 1;
+            }
+        }
+    }
+    Ok(out)
 }
 
 fn geometry(w: u32, h: u32, dx: f64, dy: f64, q: f64) -> Result<TerrainGeometry, StoreError> {
@@ -192,6 +217,8 @@ pub struct Store {
     geom: TerrainGeometry,
     /// Descriptive metadata.
     meta: StoreMeta,
+    /// Where each node's record lies.
+    layout: QuadLayout,
     /// The tile pyramid's shape.
     tiles: TileShape,
     /// What tile clients are told of the pyramid.
@@ -232,22 +259,18 @@ impl Store {
             header.spacing_y,
             header.z_quantum,
         )?;
-        let nodes = geom.shape.node_count();
-        let inner = geom.shape.level_offset(geom.shape.depth());
+        let layout = QuadLayout::new(&geom.shape);
         let samples = header.width as u64 * header.height as u64;
         let tiles = TileShape::new(header.width, header.height, header.tile_size)
             .map_err(|e| StoreError::Corrupt(e.to_string()))?;
         let n_tiles = u64::from(tiles.tile_count());
-        let expect = [nodes * 4, inner, inner * 4, inner * 4, samples.div_ceil(8)];
         let record_len = std::mem::size_of::<TileRecord>() as u64;
-        if header.sections[6].1 != n_tiles * record_len {
-            return Err(StoreError::Corrupt(format!(
-                "section tiles holds {} bytes, the pyramid implies {}",
-                header.sections[6].1,
-                n_tiles * record_len
-            )));
-        }
-        for (i, &len) in expect.iter().enumerate() {
+        let expect = [
+            (NODES, layout.len() * 4),
+            (VOIDS, samples.div_ceil(8)),
+            (TILES, n_tiles * record_len),
+        ];
+        for (i, len) in expect {
             if header.sections[i].1 != len {
                 return Err(StoreError::Corrupt(format!(
                     "section {} holds {} bytes, the grid implies {len}",
@@ -263,7 +286,7 @@ impl Store {
         if crc.finalize() != header.body_crc {
             return Err(StoreError::Corrupt("data checksum mismatch".into()));
         }
-        let (off, len) = header.sections[5];
+        let (off, len) = header.sections[META];
         let meta = serde_json::from_slice(&map[off as usize..(off + len) as usize])
             .map_err(|e| StoreError::Corrupt(format!("metadata: {e}")))?;
         let mut store = Store {
@@ -271,6 +294,7 @@ impl Store {
             header,
             geom,
             meta,
+            layout,
             tile_info: TileSetInfo {
                 tile_size: tiles.tile_size(),
                 depth: tiles.depth(),
@@ -280,7 +304,7 @@ impl Store {
             tiles,
             tile_bounds: Vec::new(),
         };
-        let data_len = store.section(7).len() as u64;
+        let data_len = store.section(TILE_DATA).len() as u64;
         let mut level_errors = vec![0f32; store.tiles.depth() as usize + 1];
         for (i, r) in store.tile_records().iter().enumerate() {
             let end = r.offset + u64::from(r.mesh_len) + u64::from(r.patch_len);
@@ -320,37 +344,47 @@ impl Store {
         &self.meta
     }
 
-    /// Heights of all nodes, z quanta, by dense index.
-    pub fn z(&self) -> &[i32] {
+    /// Every node's record (height and error code, see [`layout`]), by slot.
+    pub fn nodes(&self) -> &[u32] {
         // Sections are 8-byte aligned in a page-aligned map and their lengths were checked.
-        bytemuck::try_cast_slice(self.section(0)).unwrap_or(&[])
+        bytemuck::try_cast_slice(self.section(NODES)).unwrap_or(&[])
     }
 
-    /// Static-error codes of inner nodes, by dense index.
-    pub fn err(&self) -> &[u8] {
-        self.section(1)
+    /// Where each node's record lies in [`Store::nodes`].
+    pub fn layout(&self) -> &QuadLayout {
+        &self.layout
     }
 
-    /// Lowest subtree height of inner nodes, z quanta.
-    pub fn zmin(&self) -> &[i32] {
-        bytemuck::try_cast_slice(self.section(2)).unwrap_or(&[])
+    /// The record of `node`, an existing node.
+    #[inline]
+    pub fn record(&self, node: NodeId) -> u32 {
+        self.nodes()[self.layout.slot(node)]
     }
 
-    /// Highest subtree height of inner nodes, z quanta.
-    pub fn zmax(&self) -> &[i32] {
-        bytemuck::try_cast_slice(self.section(3)).unwrap_or(&[])
+    /// Height of `node` in z quanta.
+    pub fn node_z(&self, node: NodeId) -> i32 {
+        rec_z(self.record(node))
+    }
+
+    /// Height of the root in z quanta: what a client's mirror starts from.
+    pub fn root_z(&self) -> i32 {
+        self.node_z(NodeId::ROOT)
+    }
+
+    /// Height of sample `(col, row)` in z quanta.
+    pub fn sample_z(&self, col: u32, row: u32) -> i32 {
+        self.node_z(self.geom.shape.leaf(col, row))
     }
 
     /// Whether sample `(col, row)` was a void in the source.
     pub fn is_void(&self, col: u32, row: u32) -> bool {
         let i = row as usize * self.header.width as usize + col as usize;
-        self.section(4)[i / 8] & (1 << (i % 8)) != 0
+        self.section(VOIDS)[i / 8] & (1 << (i % 8)) != 0
     }
 
     /// Error code of `node` (0 for leaves).
     pub fn err_code(&self, node: NodeId) -> u8 {
-        let i = self.geom.shape.index(node) as usize;
-        self.err().get(i).copied().unwrap_or(0)
+        rec_code(self.record(node))
     }
 
     fn compute_tile_bounds(&self) -> Vec<TileBounds> {
@@ -392,7 +426,7 @@ impl Store {
 
     /// Tile records by dense index.
     pub fn tile_records(&self) -> &[TileRecord] {
-        bytemuck::try_cast_slice(self.section(6)).unwrap_or(&[])
+        bytemuck::try_cast_slice(self.section(TILES)).unwrap_or(&[])
     }
 
     /// The mesh blob and the patch blob of tile `index`.
@@ -400,7 +434,7 @@ impl Store {
         let Some(r) = self.tile_records().get(index as usize) else {
             return (&[], &[]);
         };
-        let data = self.section(7);
+        let data = self.section(TILE_DATA);
         let (a, m) = (r.offset as usize, r.mesh_len as usize);
         (&data[a..a + m], &data[a + m..a + m + r.patch_len as usize])
     }

@@ -35,11 +35,10 @@ fn round_trip() {
     let s = Store::open(&path).unwrap();
     let g = s.geometry();
     assert_eq!((g.shape.width(), g.shape.height()), (37, 21));
-    assert_eq!(s.z().len() as u64, g.shape.node_count());
+    assert_eq!(s.nodes().len() as u64, s.layout().len());
     assert!(s.is_void(0, 0));
     assert!(!s.is_void(1, 0));
-    let leaf = g.shape.index(g.shape.leaf(3, 0)) as usize;
-    assert_eq!(s.z()[leaf], 30); // 7.5 m / 0.25 m
+    assert_eq!(s.sample_z(3, 0), 30); // 7.5 m / 0.25 m
     assert_eq!(s.meta().source, "test");
 }
 
@@ -77,12 +76,12 @@ fn corrupt_stores_are_refused() {
     // pointing past the blobs with its checksums recomputed, are both refused.
     let mut tile = good.clone();
     let header = format::Header::parse(&good[..format::HEADER_LEN], good.len() as u64).unwrap();
-    let (data_off, data_len) = header.sections[7];
+    let (data_off, data_len) = header.sections[format::TILE_DATA];
     tile[(data_off + data_len - 1) as usize] ^= 0x01;
     let e = expect_err(&bad, &tile);
     assert!(e.to_string().contains("checksum"), "{e}");
     let mut rec = good.clone();
-    let (rec_off, _) = header.sections[6];
+    let (rec_off, _) = header.sections[format::TILES];
     rec[rec_off as usize + 8..rec_off as usize + 12].copy_from_slice(&u32::MAX.to_le_bytes());
     let mut h2 = header.clone();
     let mut crc = crc32fast::Hasher::new();

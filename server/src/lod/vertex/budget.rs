@@ -275,7 +275,7 @@ mod tests {
         budget: usize,
     ) -> (Cut, usize) {
         let geom = engine.geometry();
-        let mut mirror = Mirror::new(geom, s.z()[0]);
+        let mut mirror = Mirror::new(geom, s.root_z());
         mirror
             .apply(geom, &engine.full_delta(&cut, 0), |_, _| {})
             .unwrap();

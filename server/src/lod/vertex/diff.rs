@@ -19,26 +19,18 @@ use relief_proto::delta::Delta;
 
 /// The delta that turns cut `from` into cut `to`, canonicalized, with `to`'s digest.
 ///
-/// Both cuts must belong to the engine's terrain; interior indices that name no node of it are
-/// skipped (a cut built by [`Cut::split`] never holds one).
-pub fn diff_delta<V: Copy + Default, W: Copy + Default>(
-    engine: &VertexEngine<'_>,
-    from: &Cut<V>,
-    to: &Cut<W>,
-    seq: u64,
-) -> Delta {
+/// Both cuts must belong to the engine's terrain.
+pub fn diff_delta(engine: &VertexEngine<'_>, from: &Cut, to: &Cut, seq: u64) -> Delta {
     let shape = &engine.geometry().shape;
     let mut delta = Delta {
         seq,
         digest: to.digest(),
         merges: from
-            .interior_indices()
-            .filter_map(|i| shape.node(i))
+            .interior_nodes()
             .filter(|&n| !to.is_interior(shape, n))
             .collect(),
         splits: to
-            .interior_indices()
-            .filter_map(|i| shape.node(i))
+            .interior_nodes()
             .filter(|&n| !from.is_interior(shape, n))
             .map(|n| engine.split_payload(n))
             .collect(),
@@ -74,12 +66,12 @@ pub(super) mod tests {
     fn check_diff(s: &Store, from: &Cut, to: &Cut) -> Delta {
         let engine = VertexEngine::new(s);
         let geom = engine.geometry();
-        let mut mirror = Mirror::new(geom, s.z()[0]);
+        let mut mirror = Mirror::new(geom, s.root_z());
         mirror
             .apply(geom, &engine.full_delta(from, 0), |_, _| {})
             .unwrap();
-        // A value type on the server's side must not matter.
-        let d = diff_delta(&engine, &from.with_values::<u32>(), to, 1);
+        // Tags on the server's side must not matter.
+        let d = diff_delta(&engine, &from.tagged(&geom.shape), to, 1);
         let back = WireDelta::pack(&d, &geom.shape, geom.z_quantum)
             .unpack(&geom.shape, geom.z_quantum)
             .unwrap();
@@ -89,7 +81,7 @@ pub(super) mod tests {
         assert_eq!(sorted_active(mirror.cut(), s), sorted_active(to, s));
         for n in sorted_active(to, s) {
             let z = mirror.node(geom, n).map(|d| d.z);
-            assert_eq!(z, Some(s.z()[geom.shape.index(n) as usize]));
+            assert_eq!(z, Some(s.node_z(n)));
         }
         d
     }
@@ -123,8 +115,8 @@ pub(super) mod tests {
             prop_assert_eq!(
                 d.merges.len() + d.splits.len(),
                 from.interior_count() + to.interior_count()
-                    - 2 * from.interior_indices()
-                        .filter(|&i| to.value_at(i as u32).is_some())
+                    - 2 * from.interior_nodes()
+                        .filter(|&n| to.is_interior(&s.geometry().shape, n))
                         .count()
             );
             // And back again.

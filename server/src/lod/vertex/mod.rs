@@ -28,15 +28,16 @@
 
 pub mod budget;
 pub mod diff;
+mod schedule;
 pub mod session;
 #[cfg(test)]
 pub(crate) mod tests;
 
 use crate::store::Store;
-use crate::store::build::split_details;
+use crate::store::layout::{QuadLayout, rec_code, rec_z};
 use relief_proto::cut::Cut;
 use relief_proto::delta::{Delta, Split};
-use relief_proto::haar::error_value;
+use relief_proto::haar::{self, Presence, error_value};
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{BoxView, ViewState};
@@ -70,19 +71,28 @@ pub struct UpdateStats {
 }
 
 /// The engine over one store; cheap to create, shared by all sessions.
+///
+/// Evaluations read the store's node records directly ([`crate::store::layout`]): one `u32` gives
+/// a node's height and error code, and a node's four children are adjacent.
 pub struct VertexEngine<'s> {
-    /// The tree.
-    store: &'s Store,
     /// Tree shape and world frame.
     geom: &'s TerrainGeometry,
+    /// The node records, by slot.
+    nodes: &'s [u32],
+    /// Where each node's record lies.
+    layout: &'s QuadLayout,
+    /// Metres of each error code ([`error_value`]), without its lazy initialisation per call.
+    errors: [f32; 256],
 }
 
 impl<'s> VertexEngine<'s> {
     /// An engine over `store`.
     pub fn new(store: &'s Store) -> VertexEngine<'s> {
         VertexEngine {
-            store,
             geom: store.geometry(),
+            nodes: store.nodes(),
+            layout: store.layout(),
+            errors: std::array::from_fn(|k| error_value(k as u8)),
         }
     }
 
@@ -91,44 +101,126 @@ impl<'s> VertexEngine<'s> {
         self.geom
     }
 
+    /// The record of an existing node.
+    #[inline]
+    fn record(&self, node: NodeId) -> u32 {
+        self.nodes[self.layout.slot(node)]
+    }
+
+    /// The view terms of the box of `node`, whose record is `rec`, and its static error in metres.
+    #[inline]
+    fn view_of(&self, view: &ViewState, node: NodeId, rec: u32) -> (BoxView, f32) {
+        let err = self.errors[rec_code(rec) as usize];
+        let b = self.geom.node_box_with(node, rec_z(rec), err);
+        (view.box_view(&b), err)
+    }
+
     /// Screen error of `node` in pixels (0 for leaves and culled nodes).
     pub fn screen_error(&self, view: &ViewState, node: NodeId) -> f32 {
-        let i = self.geom.shape.index(node) as usize;
-        let Some(&code) = self.store.err().get(i) else {
-            return 0.0;
-        };
-        let b = self.geom.node_box(node, self.store.z()[i], code);
-        view.screen_error(&b, error_value(code))
+        let (bv, err) = self.view_of(view, node, self.record(node));
+        view.error_of(&bv, err)
     }
 
     /// The view terms of `node`'s box and its static error in metres.
     pub fn box_view(&self, view: &ViewState, node: NodeId) -> (BoxView, f32) {
-        let i = self.geom.shape.index(node) as usize;
-        let code = self.store.err().get(i).copied().unwrap_or(0);
-        let b = self.geom.node_box(node, self.store.z()[i], code);
-        (view.box_view(&b), error_value(code))
+        self.view_of(view, node, self.record(node))
+    }
+
+    /// The view terms and static errors of `node`'s children (those that `exists` has a bit for,
+    /// bit `k` for child `k`; the others are left at their defaults), from one quad of records.
+    #[inline]
+    pub fn children_views(
+        &self,
+        view: &ViewState,
+        node: NodeId,
+        exists: u8,
+    ) -> [(BoxView, f32); 4] {
+        let at = self.layout.children_slot(node);
+        let quad = &self.nodes[at..at + 4];
+        // Absent children's lanes repeat child 0 and are marked culled with no error.
+        let lane = |k: usize| if exists >> k & 1 != 0 { k } else { 0 };
+        let errs: [f32; 4] = std::array::from_fn(|k| self.errors[rec_code(quad[lane(k)]) as usize]);
+        let boxes = std::array::from_fn(|k| {
+            let c = lane(k);
+            self.geom
+                .node_box_with(node.child(c), rec_z(quad[c]), errs[k])
+        });
+        let views = view.box_views4(&boxes);
+        std::array::from_fn(|k| {
+            if exists >> k & 1 != 0 {
+                (views[k], errs[k])
+            } else {
+                (
+                    BoxView {
+                        margin: -1.0,
+                        depth: 0.0,
+                        r_max: 0.0,
+                        d_max: 0.0,
+                    },
+                    0.0,
+                )
+            }
+        })
+    }
+
+    /// Which of `node`'s children exist: bit `k` for child `k` (`node` is an inner node).
+    #[inline]
+    pub fn existing_children(&self, node: NodeId) -> u8 {
+        let (cw, ch) = self.geom.shape.level_dims(node.level + 1);
+        let east = 2 * node.x + 1 < cw;
+        let south = 2 * node.y + 1 < ch;
+        1 | (east as u8) << 1 | (south as u8) << 2 | ((east && south) as u8) << 3
     }
 
     /// What a client needs to split `node`.
     pub fn split_payload(&self, node: NodeId) -> Split {
+        let at = self.layout.children_slot(node);
+        let exists = self.existing_children(node);
+        let quad: [i32; 4] = std::array::from_fn(|k| {
+            if exists >> k & 1 != 0 {
+                rec_z(self.nodes[at + k])
+            } else {
+                0
+            }
+        });
+        let p = Presence {
+            east: exists & 2 != 0,
+            south: exists & 4 != 0,
+        };
         Split {
             node,
-            err_code: self.store.err_code(node),
-            details: split_details(&self.geom.shape, self.store.z(), node),
+            err_code: rec_code(self.record(node)),
+            details: haar::forward(quad, p).1,
         }
     }
 
     /// The cut for a view computed from scratch: every node whose parent's error exceeds tau.
+    /// Each split node's children are evaluated together, from one quad of records.
     pub fn initial_cut(&self, view: &ViewState, p: &LodParams, stats: &mut UpdateStats) -> Cut {
         let shape = &self.geom.shape;
         let mut cut = Cut::root(shape);
+        stats.visited += 1;
+        if shape.is_leaf(NodeId::ROOT) || self.screen_error(view, NodeId::ROOT) <= p.tau {
+            return cut;
+        }
+        cut.split_active(shape, NodeId::ROOT);
         let mut stack = vec![NodeId::ROOT];
         while let Some(n) = stack.pop() {
-            stats.visited += 1;
-            if !shape.is_leaf(n) && self.screen_error(view, n) > p.tau {
-                // Splitting an active node cannot fail.
-                let _ = cut.split(shape, n);
-                stack.extend(shape.children(n).map(|(_, c)| c));
+            if n.level + 1 == shape.depth() {
+                continue;
+            }
+            let exists = self.existing_children(n);
+            let views = self.children_views(view, n, exists);
+            for (k, (bv, err)) in views.iter().enumerate() {
+                if exists >> k & 1 == 0 {
+                    continue;
+                }
+                stats.visited += 1;
+                if view.error_of(bv, *err) > p.tau {
+                    let c = n.child(k);
+                    cut.split_active(shape, c);
+                    stack.push(c);
+                }
             }
         }
         cut
@@ -136,15 +228,13 @@ impl<'s> VertexEngine<'s> {
 
     /// The splits that build `cut` from the root cut, parents first: the delta a new session
     /// receives after its initial cut.
-    pub fn full_delta<V: Copy + Default>(&self, cut: &Cut<V>, seq: u64) -> Delta {
-        let shape = &self.geom.shape;
+    pub fn full_delta(&self, cut: &Cut, seq: u64) -> Delta {
         let mut delta = Delta {
             seq,
             digest: cut.digest(),
             merges: Vec::new(),
             splits: cut
-                .interior_indices()
-                .filter_map(|i| shape.node(i))
+                .interior_nodes()
                 .map(|n| self.split_payload(n))
                 .collect(),
         };

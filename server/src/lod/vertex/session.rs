@@ -10,82 +10,59 @@
 //! own terms ([`BoxView`]) taken at their worst over that displacement: the nearest depth shrinks
 //! or grows by at most the displacement, the horizontal reach likewise, and the frustum test's
 //! margin likewise. Camera translation moves a box by at most the eye's travel; camera rotation
-//! by angle `a` moves a point at distance `D` by at most `D * a`. So the group is filed in the
-//! band of its distance, and each band keeps an odometer that advances by the eye's travel plus
-//! the band's distance times the rotation; a group is due when its band's odometer passes its key.
+//! by angle `a` moves a point at distance `D` by at most `2 D sin(a / 2)`. So the group is filed
+//! in the band of its distance, and each band keeps an odometer that advances by the eye's travel
+//! plus the band's distance times that chord; a group is due when its band's odometer passes its
+//! key.
 //!
 //! Due groups are processed shallowest first, as in the full pass. Splitting a child examines the
 //! child's own new group at once (refinement goes as deep as the pose needs); a merge files the
-//! grandparent's group as due at the next update (coarsening moves one level per update).
+//! merged node's parent's group as due at the next update (coarsening moves one level per
+//! update).
 //!
-//! Each band's queue is a timing wheel of buckets of node indices. State per session: the cut's
-//! interior set, whose value per node is its packed due key and band, and the wheels' entries;
-//! all proportional to the number of interior nodes (about a third of the active ones).
+//! The schedule ([`super::schedule`]) keeps one entry per interior node whose group checks
+//! anything, in flat per-band buckets; an interior node whose children are all interior checks
+//! nothing and is filed nowhere until a child merges. State per session: the cut's interior
+//! bitset with a generation byte per interior node, and the schedule's entries (8 bytes each).
+//! Due groups are sorted by level in per-level lists (no global sort).
 
+use super::schedule::{Schedule, entry_parts};
 use super::{LodParams, UpdateStats, VertexEngine};
-use glam::Vec3;
 use relief_proto::cut::Cut;
-use relief_proto::delta::Delta;
+use relief_proto::delta::{Delta, Split};
 use relief_proto::tree::NodeId;
 use relief_proto::view::{BoxView, ViewState};
-use rustc_hash::FxHashMap;
 
-/// Distance bands: band `b` holds groups whose boxes lie within `2^b` metres of the eye.
-const BANDS: usize = 48;
-/// Buckets per band's wheel; a bucket spans `2^b / BUCKETS_PER_DISTANCE` metres of odometer.
-const WHEEL: u64 = 256;
-const BUCKETS_PER_DISTANCE: f64 = 64.0;
 /// Safety factor on every slack, against rounding in the bounds.
 const SLACK_SAFETY: f64 = 0.98;
-/// A rotation moves any vector by at most this factor times the largest move of the basis vectors.
-const ROTATION_FACTOR: f64 = 1.25;
-
-/// An interior node's schedule, packed in 32 bits: the due key (f32, rounded down to a multiple
-/// of 64 units in the last place) with the band in the low 6 bits.
-fn pack(key: f64, band: usize) -> u32 {
-    let k = key.max(0.0) as f32;
-    let mut bits = k.to_bits();
-    if k as f64 > key.max(0.0) {
-        bits = bits.saturating_sub(1);
-    }
-    (bits & !63) | band as u32
-}
-
-fn unpack(v: u32) -> (f64, usize) {
-    (f32::from_bits(v & !63) as f64, (v & 63) as usize)
-}
-
-/// One band's timing wheel: node indices bucketed by due odometer reading.
-#[derive(Default)]
-struct Wheel {
-    /// The occupied ones of `WHEEL` buckets, by slot; slot `i` holds keys in
-    /// `[(cursor - cursor % WHEEL + i) * width, ...)`. Sparse, because most slots of most bands
-    /// are empty and a dense array of them was most of a small session's memory.
-    buckets: FxHashMap<u32, Vec<u32>>,
-    /// Keys beyond the wheel's horizon, filed again each time the wheel turns.
-    overflow: Vec<u32>,
-    /// The bucket (absolute index) drained last.
-    cursor: u64,
-}
 
 /// A session's cut plus the schedule of its next checks.
 pub struct VertexSession {
-    /// The cut; each interior node carries its packed schedule.
-    cut: Cut<u32>,
-    /// One wheel per distance band.
-    wheels: Vec<Wheel>,
-    /// Per band: the odometer, metres of camera-relative motion since the session began.
-    odometers: Vec<f64>,
-    /// The previous update's eye and view basis, to measure the camera's motion.
-    previous: Option<(Vec3, [Vec3; 3])>,
+    /// The cut; each interior node's tag is its schedule generation.
+    cut: Cut,
+    /// When each group is due.
+    schedule: Schedule,
+    /// Due entries by level, reused across updates.
+    due: Vec<Vec<u64>>,
+    /// The splits of the update under way, with their canonical keys, reused.
+    splits: Vec<(u64, Split)>,
     /// Splits stop once the cut holds this many interior nodes: a guard on server memory
     /// against a client asking for more detail than the server will hold (see
     /// [`VertexSession::set_max_interior`]).
     max_interior: usize,
 }
 
-fn width(band: usize) -> f64 {
-    (band as f64).exp2() / BUCKETS_PER_DISTANCE
+/// The wire order of a node ([`Delta::canonicalize`]): level, then Morton code.
+fn canonical_key(n: NodeId) -> u64 {
+    let spread = |v: u32| {
+        let mut x = v as u64 & 0xFFFF_FFFF;
+        x = (x | x << 16) & 0x0000_FFFF_0000_FFFF;
+        x = (x | x << 8) & 0x00FF_00FF_00FF_00FF;
+        x = (x | x << 4) & 0x0F0F_0F0F_0F0F_0F0F;
+        x = (x | x << 2) & 0x3333_3333_3333_3333;
+        (x | x << 1) & 0x5555_5555_5555_5555
+    };
+    (n.level as u64) << 58 | spread(n.x) | spread(n.y) << 1
 }
 
 impl VertexSession {
@@ -97,25 +74,24 @@ impl VertexSession {
 
     /// A session continuing from `cut` (all groups due at the first update).
     pub fn from_cut(engine: &VertexEngine<'_>, cut: &Cut) -> VertexSession {
+        let shape = &engine.geometry().shape;
         let mut s = VertexSession {
-            cut: cut.with_values(),
-            wheels: (0..BANDS).map(|_| Wheel::default()).collect(),
-            odometers: vec![0.0; BANDS],
-            previous: None,
+            cut: cut.tagged(shape),
+            schedule: Schedule::default(),
+            due: vec![Vec::new(); shape.depth() as usize + 1],
+            splits: Vec::new(),
             max_interior: usize::MAX,
         };
-        let interior: Vec<u64> = s.cut.interior_indices().collect();
-        for i in interior {
-            if let Some(n) = engine.geometry().shape.node(i) {
-                s.file(engine, n, 0.0, 0);
-            }
+        let interior: Vec<NodeId> = s.cut.interior_nodes().collect();
+        for n in interior {
+            s.schedule.file_next(n, 0);
         }
         s
     }
 
     /// The current cut.
     pub fn cut(&self) -> Cut {
-        self.cut.with_values()
+        self.cut.clone()
     }
 
     /// The current cut's digest.
@@ -141,104 +117,16 @@ impl VertexSession {
 
     /// Bytes of memory the session's state holds.
     pub fn memory_bytes(&self) -> usize {
-        let queued: usize = self
-            .wheels
-            .iter()
-            .map(|w| {
-                (w.buckets.values().map(Vec::capacity).sum::<usize>() + w.overflow.capacity()) * 4
-                    + w.buckets.capacity() * (std::mem::size_of::<(u32, Vec<u32>)>() + 1)
-            })
-            .sum();
-        self.cut.memory_bytes() + queued + std::mem::size_of::<Self>()
+        self.cut.memory_bytes()
+            + self.schedule.memory_bytes()
+            + self.due.iter().map(|d| d.capacity() * 8).sum::<usize>()
+            + self.splits.capacity() * std::mem::size_of::<(u64, Split)>()
+            + std::mem::size_of::<Self>()
     }
 
-    /// Files `node`'s group with `slack` metres of motion before it is due, in `band`.
-    fn file(&mut self, engine: &VertexEngine<'_>, node: NodeId, slack: f64, band: usize) {
-        let packed = pack(self.odometers[band] + slack, band);
-        self.cut.set_value(&engine.geometry().shape, node, packed);
-        let idx = engine.geometry().shape.index(node) as u32;
-        self.enqueue(idx, packed);
-    }
-
-    /// Puts `idx` in the bucket of its packed key.
-    fn enqueue(&mut self, idx: u32, packed: u32) {
-        let (key, band) = unpack(packed);
-        let wheel = &mut self.wheels[band];
-        let at = ((key / width(band)) as u64).max(wheel.cursor);
-        if at - wheel.cursor < WHEEL {
-            wheel
-                .buckets
-                .entry((at % WHEEL) as u32)
-                .or_default()
-                .push(idx);
-        } else {
-            wheel.overflow.push(idx);
-        }
-    }
-
-    /// Advances the odometers by the camera's motion since the last update.
-    fn advance(&mut self, view: &ViewState) {
-        let eye = view.eye();
-        let basis = view.basis();
-        if let Some((pe, pb)) = self.previous {
-            let travel = (eye - pe).length() as f64;
-            let turn = basis
-                .iter()
-                .zip(pb.iter())
-                .map(|(a, b)| 2.0 * ((*a - *b).length() as f64 / 2.0).min(1.0).asin())
-                .fold(0.0, f64::max)
-                * ROTATION_FACTOR;
-            for (b, o) in self.odometers.iter_mut().enumerate() {
-                *o += travel + (b as f64).exp2() * turn;
-            }
-        }
-        self.previous = Some((eye, basis));
-    }
-
-    /// Drains every band's due buckets: returns the due interior nodes' indices.
-    fn due(&mut self) -> Vec<u32> {
-        let mut due = Vec::new();
-        let mut later = Vec::new();
-        for band in 0..BANDS {
-            let now = self.odometers[band];
-            let wheel = &mut self.wheels[band];
-            let target = (now / width(band)) as u64;
-            let first = wheel.cursor;
-            if wheel.buckets.is_empty() && wheel.overflow.is_empty() {
-                // Nothing filed: the wheel turns to the odometer with nothing to drain.
-                wheel.cursor = target.max(first);
-                continue;
-            }
-            let last = target.min(first + WHEEL - 1);
-            for at in first..=last {
-                if let Some(bucket) = wheel.buckets.remove(&((at % WHEEL) as u32)) {
-                    later.extend(bucket.into_iter().map(|i| (i, band)));
-                }
-            }
-            if target / WHEEL != first / WHEEL || target >= first + WHEEL {
-                later.extend(wheel.overflow.drain(..).map(|i| (i, band)));
-            }
-            wheel.cursor = target.max(first);
-            for (idx, b) in later.drain(..) {
-                // Stale entries (merged nodes, re-filed groups in another band) are dropped.
-                let Some(packed) = self.cut.value_at(idx) else {
-                    continue;
-                };
-                let (key, kb) = unpack(packed);
-                if kb != b {
-                    continue;
-                }
-                if key <= now {
-                    due.push(idx);
-                } else {
-                    self.enqueue(idx, packed);
-                }
-            }
-        }
-        // Shallowest first (dense indices grow with depth), as the paper's top-down pass.
-        due.sort_unstable();
-        due.dedup();
-        due
+    /// A new generation for interior node `node`: its older entries are stale from now on.
+    fn next_generation(&mut self, node: NodeId) -> u8 {
+        self.cut.bump_tag(node)
     }
 
     /// One update for `view`: the same delta as the paper's full top-down pass.
@@ -251,34 +139,51 @@ impl VertexSession {
         stats: &mut UpdateStats,
     ) -> Delta {
         let shape = &engine.geometry().shape;
-        self.advance(view);
+        self.schedule.advance(view);
         let mut delta = Delta {
             seq,
             ..Delta::default()
         };
+        self.splits.clear();
         if !self.cut.is_interior(shape, NodeId::ROOT) {
             stats.visited += 1;
             if engine.screen_error(view, NodeId::ROOT) > p.tau {
-                let _ = self.cut.split(shape, NodeId::ROOT);
-                delta.splits.push(engine.split_payload(NodeId::ROOT));
+                self.cut.split_active(shape, NodeId::ROOT);
+                self.push_split(engine, NodeId::ROOT);
                 self.process(engine, view, p, NodeId::ROOT, &mut delta, stats);
-                delta.canonicalize();
             }
-            delta.digest = self.cut.digest();
-            return delta;
+        } else {
+            let mut due = std::mem::take(&mut self.due);
+            self.schedule.drain(&mut due);
+            // Shallowest first, as the paper's top-down pass: a parent is examined before a
+            // child's merge can make it mergeable.
+            for level in due.iter_mut() {
+                let used = level.len();
+                for e in level.drain(..) {
+                    let (node, generation) = entry_parts(e);
+                    if self.cut.is_interior(shape, node) && self.cut.tag(node) == generation {
+                        self.process(engine, view, p, node, &mut delta, stats);
+                    }
+                }
+                trim(level, used);
+            }
+            self.due = due;
         }
-        for idx in self.due() {
-            let Some(node) = shape.node(idx as u64) else {
-                continue;
-            };
-            self.process(engine, view, p, node, &mut delta, stats);
-        }
-        delta.canonicalize();
+        // Each node's wire key computed once, one sort.
+        delta.merges.sort_by_cached_key(|&n| canonical_key(n));
+        self.splits.sort_unstable_by_key(|&(k, _)| k);
+        delta.splits = self.splits.iter().map(|&(_, s)| s).collect();
+        trim(&mut self.splits, delta.splits.len());
         delta.digest = self.cut.digest();
         delta
     }
 
-    /// Examines the group of interior node `node` (the caller knows it is interior).
+    fn push_split(&mut self, engine: &VertexEngine<'_>, node: NodeId) {
+        self.splits
+            .push((canonical_key(node), engine.split_payload(node)));
+    }
+
+    /// Examines the group of interior node `node` and files it again.
     fn process(
         &mut self,
         engine: &VertexEngine<'_>,
@@ -289,49 +194,58 @@ impl VertexSession {
         stats: &mut UpdateStats,
     ) {
         let shape = &engine.geometry().shape;
-        // Each child with whether it is interior: looked up once, used twice.
-        let mut kids = [(NodeId::ROOT, false); 4];
-        let mut n = 0;
-        for (_, c) in shape.children(node) {
-            kids[n] = (c, self.cut.is_interior(shape, c));
-            n += 1;
-        }
-        let kids = &kids[..n];
-        let all_active = kids.iter().all(|&(_, interior)| !interior);
-        let (bv, err) = engine.box_view(view, node);
+        let exists = engine.existing_children(node);
+        let active = exists & !self.cut.interior_children(node);
         let mut slack = f64::INFINITY;
-        if all_active {
+        let mut reach = 0.0f32;
+        if active == exists {
             stats.visited += 1;
+            let (bv, err) = engine.box_view(view, node);
             let e = view.error_of(&bv, err);
             if e < p.tau * p.merge_ratio {
                 self.cut.merge_interior(shape, node);
                 delta.merges.push(node);
                 if let Some(parent) = node.parent() {
-                    self.file(engine, parent, 0.0, 0);
+                    let g = self.next_generation(parent);
+                    self.schedule.file_next(parent, g);
                 }
                 return;
             }
             slack = merge_slack(view, &bv, err, p.tau * p.merge_ratio);
+            reach = bv.d_max;
         }
-        for &(c, interior) in kids {
-            if interior || shape.is_leaf(c) {
-                continue;
-            }
-            stats.visited += 1;
-            let (cv, cerr) = engine.box_view(view, c);
-            if view.error_of(&cv, cerr) > p.tau && !self.at_limit() {
-                self.cut.split_active(shape, c, 0);
-                delta.splits.push(engine.split_payload(c));
-                // Refine as deep as this pose needs, as the full pass does.
-                self.process(engine, view, p, c, delta, stats);
-            } else {
-                slack = slack.min(split_slack(view, &cv, cerr, p.tau));
+        if node.level + 1 < shape.depth() && active != 0 {
+            let views = engine.children_views(view, node, active);
+            for (k, (cv, cerr)) in views.iter().enumerate() {
+                if active >> k & 1 == 0 {
+                    continue;
+                }
+                stats.visited += 1;
+                let c = node.child(k);
+                if view.error_of(cv, *cerr) > p.tau && !self.at_limit() {
+                    self.cut.split_active(shape, c);
+                    self.push_split(engine, c);
+                    // Refine as deep as this pose needs, as the full pass does.
+                    self.process(engine, view, p, c, delta, stats);
+                } else {
+                    slack = slack.min(split_slack(view, cv, *cerr, p.tau));
+                    reach = reach.max(cv.d_max);
+                }
             }
         }
-        let slack = (slack * SLACK_SAFETY).max(0.0);
-        let reach = bv.d_max as f64 + slack;
-        let band = (reach.max(1.0).log2().ceil() as usize).min(BANDS - 1);
-        self.file(engine, node, slack, band);
+        let g = self.next_generation(node);
+        if slack.is_finite() {
+            let slack = (slack * SLACK_SAFETY).max(0.0);
+            self.schedule.file(node, g, slack, reach as f64);
+        }
+    }
+}
+
+/// Lets a reused buffer that now holds `len` items give back what a burst (the first update's
+/// full set of groups, say) made it grow to.
+fn trim<T>(v: &mut Vec<T>, len: usize) {
+    if v.capacity() > 4096 && v.capacity() > 8 * len {
+        v.shrink_to(2 * len);
     }
 }
 

@@ -130,7 +130,7 @@ proptest! {
         let v0 = ViewState::new(&camera(w, h, poses[0]), &lens());
         let mut cut = engine.initial_cut(&v0, &p, &mut st);
         prop_assert_eq!(active_set(&cut, &geom.shape), bottom_up(&engine, &v0, p.tau));
-        let mut mirror = Mirror::new(geom, s.z()[0]);
+        let mut mirror = Mirror::new(geom, s.root_z());
         let first = WireDelta::pack(&engine.full_delta(&cut, 0), &geom.shape, geom.z_quantum);
         mirror.apply(geom, &first.unpack(&geom.shape, geom.z_quantum).unwrap(), |_, _| {}).unwrap();
         for (i, t) in poses.iter().enumerate() {
@@ -144,7 +144,7 @@ proptest! {
             // Heights rebuilt from details equal the store's, node for node.
             for n in active_set(&cut, &geom.shape) {
                 let z = mirror.node(geom, n).unwrap().z;
-                prop_assert_eq!(z, s.z()[geom.shape.index(n) as usize]);
+                prop_assert_eq!(z, s.node_z(n));
             }
         }
     }
@@ -159,7 +159,7 @@ proptest! {
         let p = LodParams::default();
         let mut st = UpdateStats::default();
         let mut cut = engine.initial_cut(&ViewState::new(&camera(w, h, a), &lens()), &p, &mut st);
-        let base = Mirror::new(geom, s.z()[0]);
+        let base = Mirror::new(geom, s.root_z());
         let mut m = base.clone();
         m.apply(geom, &engine.full_delta(&cut, 0), |_, _| {}).unwrap();
         let d1 = engine.update(&mut cut, &ViewState::new(&camera(w, h, b), &lens()), &p, 1, &mut st);
@@ -220,7 +220,7 @@ fn mirror_refuses_a_forged_digest() {
     let cut = engine.initial_cut(&view, &LodParams::default(), &mut UpdateStats::default());
     let mut d: Delta = engine.full_delta(&cut, 0);
     d.digest ^= 1;
-    let mut m = Mirror::new(geom, s.z()[0]);
+    let mut m = Mirror::new(geom, s.root_z());
     assert!(matches!(
         m.apply(geom, &d, |_, _| {}),
         Err(MirrorError::Desync { .. })
