@@ -125,6 +125,10 @@ pub struct LodBenchReport {
     pub merges_total: u64,
     /// Wire bytes of all deltas (initial one included) per split.
     pub split_bytes_mean: f64,
+    /// Order-0 entropy of the same deltas' split payloads (positions, details, error residuals)
+    /// under the body coder's contexts, bytes per split: what these contexts allow any coder
+    /// (issue 11; [`relief_proto::delta::SplitEntropy`]).
+    pub split_entropy_bytes: f64,
     /// Wire bytes of the session's first delta.
     pub initial_delta_bytes: u64,
     /// Wire bytes per second of flight after the first delta.
@@ -173,6 +177,8 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
     let mut paper_cut = session.cut();
     let first = engine.full_delta(&paper_cut, 0);
     let first_bytes = wire(&first, geom);
+    let mut entropy = relief_proto::delta::SplitEntropy::default();
+    entropy.add(&first, geom.z_quantum);
     let decoded = unwire(&first_bytes, geom)?;
     mirror.apply(geom, &decoded, |_, _| {})?;
     let mut mesh = FanMesh::new(shape, mirror.cut());
@@ -188,6 +194,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         let delta = session.update(&engine, &view, &p, f as u64, &mut st);
         let bytes = wire(&delta, geom);
         r.update_us.push(t0.elapsed().as_secs_f64() * 1e6);
+        entropy.add(&delta, geom.z_quantum);
         r.visited.push(st.visited as f64);
 
         let mut pst = UpdateStats::default();
@@ -280,6 +287,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         splits_total: r.splits,
         merges_total: r.merges,
         split_bytes_mean: r.bytes as f64 / r.splits.max(1) as f64,
+        split_entropy_bytes: entropy.bytes_per_split(),
         initial_delta_bytes: first_bytes.len() as u64,
         delta_bytes_per_s_mean: r.path_bytes as f64 / seconds,
         session_bytes: median(&r.session_bytes),

@@ -1,0 +1,152 @@
+//! The order-0 entropy of a run's split payloads under the delta body's own model (issue 11,
+//! "Bytes"): the benchmark's `split_entropy_bytes`.
+//!
+//! The body's Exp-Golomb coder has one adaptive choice per context: an order per level for the
+//! details, one for the error residuals and one for the split positions of each delta. An ideal
+//! coder with the same contexts would spend, per symbol, the order-0 entropy of that context's
+//! symbols over the run. [`SplitEntropy`] tallies the symbols of every split of every delta it is
+//! given and sums:
+//! - **details**: zigzag-mapped, by value, with one context per level and component (`dv`, `dh`,
+//!   `dd`; the coder shares one order among the three, so this is the tighter bound);
+//! - **error residuals**: by value, one context;
+//! - **positions**: the level step by value, and the position value (Morton gap or code) as its
+//!   Exp-Golomb bucket (bit length of `v + 1`) plus the bits below the bucket's leading one at one
+//!   bit each: positions spread over millions of values, so a by-value tally would merely count
+//!   how rare each one is in this run.
+//!
+//! It is a bound on any coder of these symbols with these contexts and no other knowledge, not a
+//! coder: a body is decoded on its own, so a real coder also pays for learning its statistics in
+//! every delta.
+
+use super::{Delta, morton, positions, predicted_code};
+use crate::bits::zigzag;
+use rustc_hash::FxHashMap;
+
+/// The contexts of the tally.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+enum Context {
+    /// One of the three details (`dv`, `dh`, `dd`) of splits at this level.
+    Detail(u8, u8),
+    /// The error residuals.
+    Residual,
+    /// The level steps of split positions.
+    Step,
+    /// The Exp-Golomb buckets of split position values.
+    PositionBucket,
+}
+
+/// Symbol counts of the split payloads of many deltas.
+#[derive(Clone, Debug, Default)]
+pub struct SplitEntropy {
+    /// How often each symbol occurred, per context.
+    counts: FxHashMap<(Context, u64), u64>,
+    /// Bits below the leading one of the position values, counted at one bit each.
+    raw_bits: u64,
+    /// Splits tallied.
+    splits: u64,
+}
+
+impl SplitEntropy {
+    /// Tallies the splits of `delta`, coded with z quantum `quantum`.
+    pub fn add(&mut self, delta: &Delta, quantum: f32) {
+        let mut splits: Vec<_> = delta
+            .splits
+            .iter()
+            .map(|s| (s.node.level, morton(s.node), s))
+            .collect();
+        splits.sort_unstable_by_key(|&(l, m, _)| (l, m));
+        for (step, value) in positions(splits.iter().map(|&(l, m, _)| (l, m))) {
+            self.count(Context::Step, step as u64);
+            let bucket = 64 - (value + 1).leading_zeros() as u64;
+            self.count(Context::PositionBucket, bucket);
+            self.raw_bits += bucket - 1;
+        }
+        for &(level, _, s) in &splits {
+            for (i, d) in s.details.into_iter().enumerate() {
+                self.count(Context::Detail(level, i as u8), zigzag(d as i64));
+            }
+            let residual = zigzag(s.err_code as i64 - predicted_code(s.details, quantum) as i64);
+            self.count(Context::Residual, residual);
+        }
+        self.splits += splits.len() as u64;
+    }
+
+    fn count(&mut self, c: Context, symbol: u64) {
+        *self.counts.entry((c, symbol)).or_default() += 1;
+    }
+
+    /// Splits tallied.
+    pub fn splits(&self) -> u64 {
+        self.splits
+    }
+
+    /// The entropy of the tallied split payloads, in bytes per split (0 with no splits).
+    pub fn bytes_per_split(&self) -> f64 {
+        let mut totals: FxHashMap<Context, u64> = FxHashMap::default();
+        for (&(c, _), &n) in &self.counts {
+            *totals.entry(c).or_default() += n;
+        }
+        let bits: f64 = self
+            .counts
+            .iter()
+            .map(|(&(c, _), &n)| n as f64 * (totals[&c] as f64 / n as f64).log2())
+            .sum();
+        (bits + self.raw_bits as f64) / 8.0 / self.splits.max(1) as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::delta::Split;
+    use crate::tree::{NodeId, TreeShape};
+
+    /// A split of the level-3 node whose Morton code is `m`.
+    fn split(m: u32, details: [i32; 3]) -> Split {
+        let bits = |v: u32| (0..3).map(|i| ((v >> (2 * i)) & 1) << i).sum::<u32>();
+        Split {
+            node: NodeId {
+                level: 3,
+                x: bits(m),
+                y: bits(m >> 1),
+            },
+            err_code: predicted_code(details, 0.1),
+            details,
+        }
+    }
+
+    #[test]
+    fn constant_payloads_cost_only_their_positions() {
+        // Neighbours with equal details: details and residuals carry nothing; the positions are
+        // one step (first node) and gaps of 0 after it.
+        let d = Delta {
+            splits: (0..8).map(|x| split(x, [5, -3, 1])).collect(),
+            ..Delta::default()
+        };
+        let mut e = SplitEntropy::default();
+        e.add(&d, 0.1);
+        assert_eq!(e.splits(), 8);
+        // Steps {3, 0 x7} and buckets {1 x8}: H(steps) = 8 * h(1/8) bits, no raw bits.
+        let h = (1.0f64 / 8.0) * 8f64.log2() + (7.0 / 8.0) * (8.0f64 / 7.0).log2();
+        assert!(
+            (e.bytes_per_split() - h / 8.0).abs() < 1e-9,
+            "{} {}",
+            e.bytes_per_split(),
+            h / 8.0
+        );
+    }
+
+    #[test]
+    fn the_entropy_never_exceeds_the_packed_body() {
+        let shape = TreeShape::new(65, 65).unwrap();
+        let d = Delta {
+            splits: (0..8)
+                .map(|x| split(x, [x as i32 * 7 - 20, (x as i32 - 4).pow(3), x as i32 % 3]))
+                .collect(),
+            ..Delta::default()
+        };
+        let mut e = SplitEntropy::default();
+        e.add(&d, 0.1);
+        assert!(e.bytes_per_split() * 8.0 <= d.pack_body(&shape, 0.1).len() as f64);
+    }
+}
