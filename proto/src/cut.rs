@@ -59,8 +59,8 @@ impl Cut {
         }
     }
 
-    /// The same cut whose interior nodes carry a byte each ([`Cut::tag`], all 0), for an owner's
-    /// bookkeeping.
+    /// The same cut whose interior nodes carry a 4-bit tag each ([`Cut::tag`], all 0), for an
+    /// owner's bookkeeping.
     pub fn tagged(&self, shape: &TreeShape) -> Cut {
         let mut interior = NodeSet::tagged();
         for n in self.interior.iter() {
@@ -73,19 +73,19 @@ impl Cut {
         }
     }
 
-    /// The byte of interior node `node` in a [`Cut::tagged`] cut (0 otherwise).
+    /// The tag of interior node `node` in a [`Cut::tagged`] cut (0 otherwise).
     #[inline]
     pub fn tag(&self, node: NodeId) -> u8 {
         self.interior.tag(node)
     }
 
-    /// Sets the byte of interior node `node` in a [`Cut::tagged`] cut.
+    /// Sets the tag of interior node `node` in a [`Cut::tagged`] cut (its low four bits).
     #[inline]
     pub fn set_tag(&mut self, node: NodeId, tag: u8) {
         self.interior.set_tag(node, tag)
     }
 
-    /// Adds one (wrapping) to the byte of interior node `node` in a [`Cut::tagged`] cut and
+    /// Adds one (modulo 16) to the tag of interior node `node` in a [`Cut::tagged`] cut and
     /// returns it.
     #[inline]
     pub fn bump_tag(&mut self, node: NodeId) -> u8 {

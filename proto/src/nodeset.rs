@@ -9,7 +9,7 @@
 //! Slot 0 of the superpage and page tables is an all-zero sentinel that is never written, so a
 //! look-up is three dependent loads and no branch on absent pages.
 //!
-//! A set made [`NodeSet::tagged`] also keeps one byte per node of its pages, for its owner's
+//! A set made [`NodeSet::tagged`] also keeps a 4-bit tag per node of its pages, for its owner's
 //! bookkeeping (the server's schedule keeps a generation there).
 //!
 //! Within a page the bits are in Morton order, so the four children of a node (which lie in one
@@ -65,8 +65,8 @@ pub struct NodeSet {
     super_live: Vec<u16>,
     /// The bits; slot 0 is the all-zero sentinel.
     pages: Vec<[u64; 4]>,
-    /// A byte per node of each page, by page slot, when the set is tagged.
-    tags: Vec<[u8; 256]>,
+    /// A 4-bit tag per node of each page (two a byte), by page slot, when the set is tagged.
+    tags: Vec<[u8; 128]>,
     /// Whether pages carry tags.
     tagged: bool,
     /// Set bits per page.
@@ -95,10 +95,11 @@ impl NodeSet {
             return 0;
         }
         let (page, bit) = self.locate(node);
-        self.tags[page][bit as usize]
+        self.tags[page][(bit >> 1) as usize] >> ((bit & 1) * 4) & 15
     }
 
-    /// Sets the tag of `node`, which must be in the set (no effect otherwise).
+    /// Sets the tag of `node` to `tag`'s low four bits; `node` must be in the set (no effect
+    /// otherwise).
     #[inline]
     pub fn set_tag(&mut self, node: NodeId, tag: u8) {
         if !self.tagged || self.supers.is_empty() {
@@ -106,11 +107,13 @@ impl NodeSet {
         }
         let (page, bit) = self.locate(node);
         if page != 0 {
-            self.tags[page][bit as usize] = tag;
+            let shift = (bit & 1) * 4;
+            let t = &mut self.tags[page][(bit >> 1) as usize];
+            *t = (*t & !(15 << shift)) | (tag & 15) << shift;
         }
     }
 
-    /// Adds one (wrapping) to the tag of `node`, which must be in the set, and returns the new
+    /// Adds one (modulo 16) to the tag of `node`, which must be in the set, and returns the new
     /// tag (0 for an untagged set).
     #[inline]
     pub fn bump_tag(&mut self, node: NodeId) -> u8 {
@@ -121,9 +124,11 @@ impl NodeSet {
         if page == 0 {
             return 0;
         }
-        let t = &mut self.tags[page][bit as usize];
-        *t = t.wrapping_add(1);
-        *t
+        let shift = (bit & 1) * 4;
+        let t = &mut self.tags[page][(bit >> 1) as usize];
+        let v = (*t >> shift).wrapping_add(1) & 15;
+        *t = (*t & !(15 << shift)) | v << shift;
+        v
     }
 
     /// Number of nodes in the set.
@@ -141,7 +146,7 @@ impl NodeSet {
         let dirs: usize = self.levels.iter().map(|l| l.dir.capacity() * 4).sum();
         dirs + self.supers.capacity() * (SUPER_PAGES * 4 + 2)
             + self.pages.capacity() * (32 + 2)
-            + self.tags.capacity() * 256
+            + self.tags.capacity() * 128
             + (self.free_supers.capacity() + self.free_pages.capacity()) * 4
             + self.levels.capacity() * std::mem::size_of::<Level>()
     }
@@ -201,7 +206,7 @@ impl NodeSet {
             self.pages.push([0; 4]);
             self.page_live.push(0);
             if self.tagged {
-                self.tags.push([0; 256]);
+                self.tags.push([0; 128]);
             }
         }
         let l = node.level as usize;
@@ -245,13 +250,13 @@ impl NodeSet {
                     self.pages.push([0; 4]);
                     self.page_live.push(0);
                     if self.tagged {
-                        self.tags.push([0; 256]);
+                        self.tags.push([0; 128]);
                     }
                     self.pages.len() as u32 - 1
                 }
             };
             if self.tagged {
-                self.tags[page as usize] = [0; 256];
+                self.tags[page as usize] = [0; 128];
             }
             self.supers[sup as usize][p] = page;
             self.super_live[sup as usize] += 1;
@@ -394,7 +399,10 @@ mod tests {
                 if add {
                     prop_assert_eq!(set.insert(&shape, n), truth.insert(n));
                     set.set_tag(n, x as u8);
-                    prop_assert_eq!(set.tag(n), x as u8);
+                    prop_assert_eq!(set.tag(n), x as u8 & 15);
+                    let next = set.bump_tag(n);
+                    prop_assert_eq!(next, (x as u8).wrapping_add(1) & 15);
+                    prop_assert_eq!(set.tag(n), next);
                 } else {
                     prop_assert_eq!(set.remove(n), truth.remove(&n));
                 }

@@ -9,7 +9,7 @@
 //!   the chord of the camera's rotation, `2 sin(theta / 2) = sqrt(3 - trace R)`: the most a point
 //!   that far away can move relative to the camera. A group is due when its band's odometer
 //!   passes the reading at filing plus its slack.
-//! - **Wheels.** A band's wheel has 256 buckets of `bound / 64` metres of odometer each; a slack
+//! - **Wheels.** A band's wheel has 64 buckets of `bound / 16` metres of odometer each; a slack
 //!   beyond the wheel's horizon is cut to it (the group is then examined once per turn, which is
 //!   conservative). Buckets are `Vec`s that keep their capacity (up to twice their share of the
 //!   wheel), so filing seldom allocates once the session has warmed up; draining a band touches
@@ -27,9 +27,9 @@ use relief_proto::view::ViewState;
 /// Quarter-octave bands from 1 m to 2^48 m.
 const BANDS: usize = 192;
 /// Buckets per wheel.
-const WHEEL: u64 = 256;
+const WHEEL: u64 = 64;
 /// Buckets per band bound.
-const BUCKETS_PER_BOUND: f64 = 64.0;
+const BUCKETS_PER_BOUND: f64 = 16.0;
 /// Key units per bucket.
 const UNITS: u64 = 256;
 /// The largest slack a wheel holds, in buckets: a full turn less one.
@@ -157,22 +157,31 @@ impl Schedule {
         self.next.push(entry(node, 0, generation));
     }
 
-    /// Moves every due entry into `out`, by the node's level (`out` must have a list per level);
-    /// the caller checks each against the node's current generation.
-    pub fn drain(&mut self, out: &mut [Vec<u64>]) {
-        let level = |e: u64| (e >> 60) as usize;
-        for e in self.next.drain(..) {
-            out[level(e)].push(e);
-        }
+    /// Number of bands, for [`Schedule::drain_band`].
+    pub fn bands(&self) -> usize {
+        BANDS
+    }
+
+    /// Moves the entries filed for the next update into `out`; the caller checks each against
+    /// the node's current generation.
+    pub fn drain_next(&mut self, out: &mut Vec<u64>) {
+        out.append(&mut self.next);
         if self.next.capacity() > 4096 {
             self.next.shrink_to(1024);
         }
-        for (band, wheel) in self.wheels.iter_mut().enumerate() {
+    }
+
+    /// Moves band `band`'s due entries into `out`; the caller checks each against the node's
+    /// current generation. Entries filed meanwhile into a band not yet drained may come out in
+    /// the same update if already due: examining a group early is only extra work.
+    pub fn drain_band(&mut self, band: usize, out: &mut Vec<u64>) {
+        let wheel = &mut self.wheels[band];
+        {
             let now = (self.odometers[band] * self.per_metre[band]) as u64;
             let target = now / UNITS;
             if wheel.live == 0 {
                 wheel.cursor = target;
-                continue;
+                return;
             }
             let first = wheel.cursor;
             let last = target.min(first + WHEEL - 1);
@@ -181,9 +190,7 @@ impl Schedule {
                 if b < target || target >= first + WHEEL {
                     // Wholly passed: every entry is due.
                     wheel.live -= bucket.len();
-                    for e in bucket.drain(..) {
-                        out[level(e)].push(e);
-                    }
+                    out.append(bucket);
                     // Keep about twice a bucket's share of the wheel: a bucket that once took a
                     // burst (the horizon's, say) must not hold its peak for ever.
                     let keep = 2 * wheel.live / WHEEL as usize + 32;
@@ -197,7 +204,7 @@ impl Schedule {
                         let key = (e >> 8) & 0xFF_FFFF;
                         let behind = (now as u32).wrapping_sub(key as u32) & 0xFF_FFFF;
                         if behind < 1 << 23 {
-                            out[level(e)].push(e);
+                            out.push(e);
                             false
                         } else {
                             true

@@ -15,23 +15,25 @@
 //! plus the band's distance times that chord; a group is due when its band's odometer passes its
 //! key.
 //!
-//! Due groups are processed shallowest first, as in the full pass. Splitting a child examines the
-//! child's own new group at once (refinement goes as deep as the pose needs); a merge files the
-//! merged node's parent's group as due at the next update (coarsening moves one level per
-//! update).
+//! Due groups are examined as they come out of the schedule, in no order of depth. The full pass
+//! examines parents first, so a node whose child merged in this update may not merge before the
+//! next one: such nodes are *blocked* for the rest of the update (their split checks still run)
+//! and filed for the next update (coarsening moves one level per update). Splitting a child
+//! examines the child's own new group at once (refinement goes as deep as the pose needs).
 //!
 //! The schedule ([`super::schedule`]) keeps one entry per interior node whose group checks
 //! anything, in flat per-band buckets; an interior node whose children are all interior checks
 //! nothing and is filed nowhere until a child merges. State per session: the cut's interior
-//! bitset with a generation byte per interior node, and the schedule's entries (8 bytes each).
-//! Due groups are sorted by level in per-level lists (no global sort).
+//! bitset with a 4-bit generation per interior node, and the schedule's entries (8 bytes each).
+//! Due groups are examined band by band as they come out of the wheels (no sort).
 
-use super::schedule::{Schedule, entry_parts};
+use super::schedule::{Schedule, entry_parts, pack_node};
 use super::{LodParams, UpdateStats, VertexEngine};
 use relief_proto::cut::Cut;
-use relief_proto::delta::{Delta, Split};
+use relief_proto::delta::Delta;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{BoxView, ViewState};
+use rustc_hash::FxHashSet;
 
 /// Safety factor on every slack, against rounding in the bounds.
 const SLACK_SAFETY: f64 = 0.98;
@@ -42,10 +44,11 @@ pub struct VertexSession {
     cut: Cut,
     /// When each group is due.
     schedule: Schedule,
-    /// Due entries by level, reused across updates.
-    due: Vec<Vec<u64>>,
-    /// The splits of the update under way, with their canonical keys, reused.
-    splits: Vec<(u64, Split)>,
+    /// Due entries of the band being processed, reused across updates.
+    due: Vec<u64>,
+    /// Interior nodes a child of which merged in the update under way (packed): they may not
+    /// merge before the next update.
+    blocked: FxHashSet<u32>,
     /// Splits stop once the cut holds this many interior nodes: a guard on server memory
     /// against a client asking for more detail than the server will hold (see
     /// [`VertexSession::set_max_interior`]).
@@ -78,8 +81,8 @@ impl VertexSession {
         let mut s = VertexSession {
             cut: cut.tagged(shape),
             schedule: Schedule::default(),
-            due: vec![Vec::new(); shape.depth() as usize + 1],
-            splits: Vec::new(),
+            due: Vec::new(),
+            blocked: FxHashSet::default(),
             max_interior: usize::MAX,
         };
         let interior: Vec<NodeId> = s.cut.interior_nodes().collect();
@@ -117,10 +120,21 @@ impl VertexSession {
 
     /// Bytes of memory the session's state holds.
     pub fn memory_bytes(&self) -> usize {
+        if std::env::var_os("RELIEF_DEBUG_MEM").is_some() {
+            eprintln!(
+                "cut {} sched {} due {} splits {} interior {} active {}",
+                self.cut.memory_bytes(),
+                self.schedule.memory_bytes(),
+                self.due.capacity() * 8,
+                0,
+                self.cut.interior_count(),
+                self.cut.active_count()
+            );
+        }
         self.cut.memory_bytes()
             + self.schedule.memory_bytes()
-            + self.due.iter().map(|d| d.capacity() * 8).sum::<usize>()
-            + self.splits.capacity() * std::mem::size_of::<(u64, Split)>()
+            + self.due.capacity() * 8
+            + self.blocked.capacity() * 5
             + std::mem::size_of::<Self>()
     }
 
@@ -144,43 +158,42 @@ impl VertexSession {
             seq,
             ..Delta::default()
         };
-        self.splits.clear();
         if !self.cut.is_interior(shape, NodeId::ROOT) {
             stats.visited += 1;
             if engine.screen_error(view, NodeId::ROOT) > p.tau {
                 self.cut.split_active(shape, NodeId::ROOT);
-                self.push_split(engine, NodeId::ROOT);
+                delta.splits.push(engine.split_payload(NodeId::ROOT));
                 self.process(engine, view, p, NodeId::ROOT, &mut delta, stats);
             }
         } else {
+            // Band by band, in no order of depth: a parent examined after its child merged in
+            // this update is blocked from merging (and examined again at the next update), so
+            // coarsening still moves one level per update, as in the paper's top-down pass.
+            self.blocked.clear();
             let mut due = std::mem::take(&mut self.due);
-            self.schedule.drain(&mut due);
-            // Shallowest first, as the paper's top-down pass: a parent is examined before a
-            // child's merge can make it mergeable.
-            for level in due.iter_mut() {
-                let used = level.len();
-                for e in level.drain(..) {
+            let mut peak = 0;
+            for band in 0..=self.schedule.bands() {
+                if band == 0 {
+                    self.schedule.drain_next(&mut due);
+                } else {
+                    self.schedule.drain_band(band - 1, &mut due);
+                }
+                peak = peak.max(due.len());
+                for e in due.drain(..) {
                     let (node, generation) = entry_parts(e);
                     if self.cut.is_interior(shape, node) && self.cut.tag(node) == generation {
                         self.process(engine, view, p, node, &mut delta, stats);
                     }
                 }
-                trim(level, used);
             }
+            trim(&mut due, peak);
             self.due = due;
         }
-        // Each node's wire key computed once, one sort.
+        // Each node's wire key computed once, one sort each.
         delta.merges.sort_by_cached_key(|&n| canonical_key(n));
-        self.splits.sort_unstable_by_key(|&(k, _)| k);
-        delta.splits = self.splits.iter().map(|&(_, s)| s).collect();
-        trim(&mut self.splits, delta.splits.len());
+        delta.splits.sort_by_cached_key(|s| canonical_key(s.node));
         delta.digest = self.cut.digest();
         delta
-    }
-
-    fn push_split(&mut self, engine: &VertexEngine<'_>, node: NodeId) {
-        self.splits
-            .push((canonical_key(node), engine.split_payload(node)));
     }
 
     /// Examines the group of interior node `node` and files it again.
@@ -198,7 +211,10 @@ impl VertexSession {
         let active = exists & !self.cut.interior_children(node);
         let mut slack = f64::INFINITY;
         let mut reach = 0.0f32;
-        if active == exists {
+        if active == exists && self.blocked.contains(&pack_node(node)) {
+            // A child merged in this update: the merge check waits for the next one.
+            slack = 0.0;
+        } else if active == exists {
             stats.visited += 1;
             let (bv, err) = engine.box_view(view, node);
             let e = view.error_of(&bv, err);
@@ -206,8 +222,11 @@ impl VertexSession {
                 self.cut.merge_interior(shape, node);
                 delta.merges.push(node);
                 if let Some(parent) = node.parent() {
-                    let g = self.next_generation(parent);
-                    self.schedule.file_next(parent, g);
+                    // Its group gained this node's split check and maybe its own merge check:
+                    // examined at the next update. Its entry stays live, since its other
+                    // checks may be due in this one.
+                    self.blocked.insert(pack_node(parent));
+                    self.schedule.file_next(parent, self.cut.tag(parent));
                 }
                 return;
             }
@@ -224,7 +243,7 @@ impl VertexSession {
                 let c = node.child(k);
                 if view.error_of(cv, *cerr) > p.tau && !self.at_limit() {
                     self.cut.split_active(shape, c);
-                    self.push_split(engine, c);
+                    delta.splits.push(engine.split_payload(c));
                     // Refine as deep as this pose needs, as the full pass does.
                     self.process(engine, view, p, c, delta, stats);
                 } else {

@@ -279,3 +279,4 @@ proptest! {
         prop_assert!(session_visits <= full_visits);
     }
 }
+
