@@ -199,7 +199,7 @@ pub fn path(i: usize, len: usize) -> Vec<Camera> {
         let (c, r) = g.frame.to_grid(x, y);
         let c = (c.round().max(0.0) as u32).min(w - 1);
         let r = (r.round().max(0.0) as u32).min(h - 1);
-        store.z()[g.shape.index(g.shape.leaf(c, r)) as usize] as f32 * g.z_quantum
+        store.sample_z(c, r) as f32 * g.z_quantum
     };
     let kind = if i.is_multiple_of(2) {
         PathKind::Standard

@@ -6,8 +6,9 @@
 //!   `2^(b/4) (5 + b mod 4) / 4` metres, read off the reach's float exponent and top two mantissa
 //!   bits (no libm). The band's bound overestimates a reach by at most 25 %.
 //! - **Odometers.** Each band's odometer advances by the eye's travel plus the band's bound times
-//!   the chord of the camera's rotation, `2 sin(theta / 2) = sqrt(3 - trace R)`: the most a point
-//!   that far away can move relative to the camera. A group is due when its band's odometer
+//!   the chord of the camera's rotation, `2 sin(theta / 2)`, the most a point that far away can
+//!   move relative to the camera (from the basis vectors' moves: their squares sum to twice the
+//!   chord's square). A group is due when its band's odometer
 //!   passes the reading at filing plus its slack.
 //! - **Wheels.** A band's wheel has 64 buckets of `bound / 16` metres of odometer each; a slack
 //!   beyond the wheel's horizon is cut to it (the group is then examined once per turn, which is
@@ -34,7 +35,8 @@ const BUCKETS_PER_BOUND: f64 = 16.0;
 const UNITS: u64 = 256;
 /// The largest slack a wheel holds, in buckets: a full turn less one.
 const HORIZON_BUCKETS: f64 = (WHEEL - 2) as f64;
-/// Added to the rotation's chord against rounding in the view bases.
+/// Added to the rotation's chord against rounding in the view bases (unit vectors to about
+/// 1e-7).
 const CHORD_GUARD: f64 = 1e-6;
 
 /// The band of a group whose reach is `reach` metres.
@@ -76,6 +78,20 @@ pub fn entry_parts(e: u64) -> (NodeId, u8) {
 
 fn entry(node: NodeId, key: u64, generation: u8) -> u64 {
     (pack_node(node) as u64) << 32 | (key & 0xFF_FFFF) << 8 | generation as u64
+}
+
+/// An upper bound on how far the camera's turn from basis `a` to basis `b` moves a point at
+/// unit distance relative to the camera: the chord `2 sin(theta / 2)` of the rotation's angle.
+/// For a rotation, `sum |b - a|^2` over the basis vectors is `6 - 2 trace R`, twice the chord's
+/// square; summed from the differences, a small turn's chord stays accurate where `3 - trace`
+/// would cancel in single precision.
+pub fn chord(a: &[Vec3; 3], b: &[Vec3; 3]) -> f64 {
+    let moved: f64 = a
+        .iter()
+        .zip(b.iter())
+        .map(|(a, b)| (*a - *b).length_squared() as f64)
+        .sum();
+    (moved / 2.0).sqrt() + CHORD_GUARD
 }
 
 /// One band's wheel.
@@ -123,12 +139,7 @@ impl Schedule {
         let basis = view.basis();
         if let Some((pe, pb)) = self.previous {
             let travel = (eye - pe).length() as f64;
-            let trace: f64 = basis
-                .iter()
-                .zip(pb.iter())
-                .map(|(a, b)| a.dot(*b) as f64)
-                .sum();
-            let chord = (3.0 - trace).max(0.0).sqrt() + CHORD_GUARD;
+            let chord = chord(&pb, &basis);
             for (b, o) in self.odometers.iter_mut().enumerate() {
                 *o += travel + band_bound(b) * chord;
             }
@@ -249,6 +260,33 @@ mod tests {
         }
         assert_eq!(band_of(0.2), 0);
         assert_eq!(band_of(f32::INFINITY), BANDS - 1);
+    }
+
+    #[test]
+    fn the_chord_bounds_a_turn_tightly_even_when_small() {
+        use relief_proto::view::{Camera, Lens};
+        for turn in [1e-5f32, 1e-3, 0.05, 0.7] {
+            let cam = |yaw: f32, pitch: f32| {
+                ViewState::new(
+                    &Camera {
+                        eye: Vec3::ZERO,
+                        yaw,
+                        pitch,
+                    },
+                    &Lens::STANDARD,
+                )
+                .basis()
+            };
+            let (a, b) = (cam(0.3, -0.4), cam(0.3 + turn, -0.4));
+            let c = chord(&a, &b);
+            // Every basis vector (so every point at unit distance) moves by at most the chord...
+            for (u, v) in a.iter().zip(&b) {
+                assert!(((*u - *v).length() as f64) <= c, "turn {turn}");
+            }
+            // ...which is the turn's true chord, not a loose bound on it.
+            let truth = 2.0 * (turn as f64 / 2.0).sin();
+            assert!(c <= 1.01 * truth + 2e-6, "turn {turn}: {c} vs {truth}");
+        }
     }
 
     #[test]

@@ -120,17 +120,6 @@ impl VertexSession {
 
     /// Bytes of memory the session's state holds.
     pub fn memory_bytes(&self) -> usize {
-        if std::env::var_os("RELIEF_DEBUG_MEM").is_some() {
-            eprintln!(
-                "cut {} sched {} due {} splits {} interior {} active {}",
-                self.cut.memory_bytes(),
-                self.schedule.memory_bytes(),
-                self.due.capacity() * 8,
-                0,
-                self.cut.interior_count(),
-                self.cut.active_count()
-            );
-        }
         self.cut.memory_bytes()
             + self.schedule.memory_bytes()
             + self.due.capacity() * 8

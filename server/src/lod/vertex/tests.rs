@@ -279,4 +279,3 @@ proptest! {
         prop_assert!(session_visits <= full_visits);
     }
 }
-
