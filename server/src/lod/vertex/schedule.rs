@@ -12,9 +12,9 @@
 //!   passes the reading at filing plus its slack.
 //! - **Wheels.** A band's wheel has 64 buckets of `bound / 16` metres of odometer each; a slack
 //!   beyond the wheel's horizon is cut to it (the group is then examined once per turn, which is
-//!   conservative). Buckets are `Vec`s that keep their capacity (up to twice their share of the
-//!   wheel), so filing seldom allocates once the session has warmed up; draining a band touches
-//!   only the buckets the odometer passed.
+//!   conservative). Buckets are `Vec`s that keep up to their share of the wheel's entries when
+//!   drained, so filing seldom allocates once the session has warmed up and a burst does not
+//!   hold memory; draining a band touches only the buckets the odometer passed.
 //! - **Entries.** One `u64`: the node packed in 32 bits (level, row, column; inner nodes fit), the
 //!   due reading in units of 1/256 bucket (low 24 bits, compared with wrapping arithmetic, rounded
 //!   down), and the generation the node had when filed. A node filed again gets a new generation,
@@ -202,10 +202,10 @@ impl Schedule {
                     // Wholly passed: every entry is due.
                     wheel.live -= bucket.len();
                     out.append(bucket);
-                    // Keep about twice a bucket's share of the wheel: a bucket that once took a
-                    // burst (the horizon's, say) must not hold its peak for ever.
-                    let keep = 2 * wheel.live / WHEEL as usize + 32;
-                    if bucket.capacity() > 2 * keep {
+                    // Keep about a bucket's share of the wheel: a bucket that once took a burst
+                    // (the horizon's, say) must not hold its peak for ever.
+                    let keep = wheel.live / WHEEL as usize;
+                    if bucket.capacity() > keep + keep / 2 + 4 {
                         bucket.shrink_to(keep);
                     }
                 } else {
@@ -225,6 +225,10 @@ impl Schedule {
                 }
             }
             wheel.cursor = target.max(first);
+            if wheel.live == 0 {
+                // An empty band gives its buckets back.
+                wheel.buckets = Vec::new();
+            }
         }
     }
 
