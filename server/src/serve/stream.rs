@@ -23,7 +23,7 @@ use relief_proto::view::{Camera, Lens, ViewState};
 /// How a session's cut is kept.
 enum Lod {
     /// Unbudgeted: the event-driven session.
-    Coherent(VertexSession),
+    Coherent(Box<VertexSession>),
     /// Budgeted: the cut alone, updated by the budgeted full pass.
     Budgeted(Cut),
     /// The tile stream.
@@ -72,7 +72,7 @@ impl Stream {
         } else {
             let mut s = VertexSession::from_cut(engine, cut);
             s.set_max_interior(max_interior);
-            Lod::Coherent(s)
+            Lod::Coherent(Box::new(s))
         };
         Stream {
             lod,
