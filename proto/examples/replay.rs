@@ -91,22 +91,11 @@ fn main() {
                 "mesh differs"
             );
             eprintln!(
-                "triangles {} cells {} interior {} active {}",
+                "final cut: {} triangles, {} junction cells, {} active nodes",
                 mesh.triangle_count(),
                 mesh.cells().len(),
-                mirror.cut().interior_count(),
                 mirror.cut().active_count()
             );
-            for b in [2u32, 3, 4] {
-                let mut p: Vec<(u32, u32)> = mesh
-                    .cells()
-                    .iter()
-                    .map(|&(c, r)| (c >> b, r >> b))
-                    .collect();
-                p.sort_unstable();
-                p.dedup();
-                eprintln!("pages of {}: {}", 1 << b, p.len());
-            }
         }
         let total = |v: &[f64]| v.iter().sum::<f64>();
         if best.as_ref().is_none_or(|b| total(&us) < total(b)) {

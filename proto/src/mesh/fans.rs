@@ -150,20 +150,9 @@ impl FanMesh {
     }
 
     /// Sets cell `(c, r)` from its corners' active levels (NW, NE, SW, SE).
-    fn store(&mut self, c: u32, r: u32, [lnw, lne, lsw, lse]: [u8; 4]) {
+    fn store(&mut self, c: u32, r: u32, levels: [u8; 4]) {
         self.work += 1;
-        let at = |cc: u32, rr: u32, level: u8| corner_node(self.depth, cc, rr, level);
-        let (nw, ne) = (at(c, r, lnw), at(c + 1, r, lne));
-        let (sw, se) = (at(c, r + 1, lsw), at(c + 1, r + 1, lse));
-        let a = nw != sw && sw != se && nw != se;
-        let b = nw != se && se != ne && nw != ne;
-        // A corner only a missing triangle uses is stored as 0.
-        let used = |l: u8, used: bool| if used { u16::from(l) } else { 0 };
-        let rec = if a || b {
-            u16::from(lnw) | used(lne, b) << 4 | used(lsw, a) << 8 | u16::from(lse) << 12
-        } else {
-            0
-        };
+        let rec = record(self.depth, c, r, levels);
         if let Some(old) = self.cells.set(c, r, rec, self.track) {
             self.count = self.count + triangles(rec) - triangles(old);
         }
@@ -185,6 +174,27 @@ impl FanMesh {
         let [a, b] = cell_triangles(nw, ne, sw, se);
         [a.filter(|_| l(8) != 0), b.filter(|_| l(4) != 0)]
     }
+}
+
+/// The record of cell `(c, r)` whose corners' active nodes are at `levels` (NW, NE, SW, SE), in
+/// a tree of depth `depth`.
+///
+/// Two corners have the same active node when their levels are equal and no block boundary of
+/// that level runs between them. Between columns `c` and `c + 1` the boundaries are those of
+/// the levels whose block size divides `c + 1`: the bits that differ between `c` and `c + 1`,
+/// shifted right by the block size's log, are then not all 0.
+fn record(depth: u8, c: u32, r: u32, [lnw, lne, lsw, lse]: [u8; 4]) -> u16 {
+    let (dx, dy) = (c ^ (c + 1), r ^ (r + 1));
+    let same = |la: u8, lb: u8, d: u32| la == lb && d >> (depth - la) == 0;
+    let diagonal = same(lnw, lse, dx | dy);
+    let a = !diagonal && !same(lnw, lsw, dy) && !same(lsw, lse, dx);
+    let b = !diagonal && !same(lnw, lne, dx) && !same(lne, lse, dy);
+    if !(a || b) {
+        return 0;
+    }
+    // A corner only a missing triangle uses is stored as 0.
+    let used = |l: u8, used: bool| if used { u16::from(l) } else { 0 };
+    u16::from(lnw) | used(lne, b) << 4 | used(lsw, a) << 8 | u16::from(lse) << 12
 }
 
 /// Triangles in a cell record: one per corner level it uses besides NW and SE.

@@ -30,23 +30,18 @@ pub(super) struct Ring {
     south: Vec<(u32, u8)>,
 }
 
-/// The level of the run of `side` that holds position `at`.
-fn find(side: &[(u32, u8)], at: u32) -> u8 {
-    side[side.partition_point(|&(last, _)| last < at)].1
-}
-
 /// The active ancestor of sample `(c, r)`, searched from level `hint` (an active neighbour's
 /// level is usually within one of the block's): up while the parent is not interior, else down
-/// while the node is interior.
+/// while the node is interior. Levels below `floor` are known to be interior.
 fn active_near<V: Copy + Default>(
     shape: &TreeShape,
     cut: &Cut<V>,
-    c: u32,
-    r: u32,
+    (c, r): (u32, u32),
     hint: u8,
+    floor: u8,
 ) -> NodeId {
     let leaf = shape.leaf(c, r);
-    let mut l = hint.min(shape.depth());
+    let mut l = hint.max(floor).min(shape.depth());
     if cut.is_interior(shape, leaf.ancestor_at(l)) {
         // Leaves are never interior, so this stops at the depth at the latest.
         l += 1;
@@ -54,7 +49,7 @@ fn active_near<V: Copy + Default>(
             l += 1;
         }
     } else {
-        while l > 0 && !cut.is_interior(shape, leaf.ancestor_at(l - 1)) {
+        while l > floor && !cut.is_interior(shape, leaf.ancestor_at(l - 1)) {
             l -= 1;
         }
     }
@@ -81,7 +76,12 @@ impl Ring {
             let mut hint = node.level;
             while at <= to {
                 let (c, r) = if column { (fixed, at) } else { (at, fixed) };
-                let n = active_near(shape, cut, c, r, hint);
+                // The node's ancestors are interior (it is active or has just split), and so
+                // are the sample's ancestors it shares: those above the highest bit in which
+                // the sample's column or row differs from the block's origin.
+                let differ = (c ^ c0) | (r ^ r0);
+                let floor = shape.depth() - (31 - differ.leading_zeros()) as u8;
+                let n = active_near(shape, cut, (c, r), hint, floor);
                 let (_, _, nc1, nr1) = shape.block(n);
                 let last = if column { nr1 } else { nc1 };
                 out.push((last, n.level));
@@ -108,60 +108,91 @@ impl Ring {
         }
     }
 
-    /// The level of the active node of sample `(c, r)`, which must lie in the block or on the
-    /// ring.
-    fn level_at(&self, c: u32, r: u32) -> u8 {
-        let (c0, r0, c1, r1) = self.block;
-        if (c0..=c1).contains(&c) && (r0..=r1).contains(&r) {
-            self.inner
-        } else if c + 1 == c0 {
-            find(&self.west, r)
-        } else if c == c1 + 1 {
-            find(&self.east, r)
-        } else if r + 1 == r0 {
-            find(&self.north, c)
-        } else {
-            debug_assert_eq!(r, r1 + 1);
-            find(&self.south, c)
-        }
-    }
-
     /// Calls `f(c, r, levels)` once for each cell that the block's change can touch, with the
     /// levels of its NW, NE, SW and SE samples' active nodes.
     pub(super) fn for_each_cell(&self, shape: &TreeShape, mut f: impl FnMut(u32, u32, [u8; 4])) {
         let (c0, r0, c1, r1) = self.block;
         let (w, h) = (shape.width(), shape.height());
+        let inner = self.inner;
         // The cell centred on the corner between samples (x - 1, x) and (y - 1, y) is cell
-        // (x - 1, y - 1); it exists when 1 <= x < w and 1 <= y < h.
-        let mut centre = |x: u32, y: u32| {
-            if x >= 1 && y >= 1 && x < w && y < h {
-                let (c, r) = (x - 1, y - 1);
-                let levels = [
-                    self.level_at(c, r),
-                    self.level_at(x, r),
-                    self.level_at(c, y),
-                    self.level_at(x, y),
-                ];
-                f(c, r, levels);
-            }
-        };
+        // (x - 1, y - 1); it exists when 1 <= x < w and 1 <= y < h. Its samples off the block
+        // lie on the ring; the ends of an edge reach the ring's neighbouring sides (which exist
+        // where the cell does).
+        let exists = |x: u32, y: u32| x >= 1 && y >= 1 && x < w && y < h;
         let (cm, rm) = (c0 + self.half, r0 + self.half);
-        // West and east edges, corners included.
-        for (x, side) in [(c0, &self.west), (c1 + 1, &self.east)] {
-            if !side.is_empty() {
-                points(side, r0, r1, rm, true, |y| centre(x, y));
-            }
+        if !self.west.is_empty() {
+            let mut west = Cursor::new(&self.west);
+            points(&self.west, r0, r1, rm, true, |y| {
+                if exists(c0, y) {
+                    let (nw, sw) = (west.at(y - 1), west.at(y));
+                    let ne = if y == r0 { self.north[0].1 } else { inner };
+                    let se = if y > r1 { self.south[0].1 } else { inner };
+                    f(c0 - 1, y - 1, [nw, ne, sw, se]);
+                }
+            });
         }
-        // North and south edges, corners excluded.
-        for (y, side) in [(r0, &self.north), (r1 + 1, &self.south)] {
-            if !side.is_empty() {
-                points(side, c0, c1, cm, false, |x| centre(x, y));
-            }
+        if !self.east.is_empty() {
+            let mut east = Cursor::new(&self.east);
+            let x = c1 + 1;
+            points(&self.east, r0, r1, rm, true, |y| {
+                if exists(x, y) {
+                    let (ne, se) = (east.at(y - 1), east.at(y));
+                    let nw = if y == r0 { last(&self.north) } else { inner };
+                    let sw = if y > r1 { last(&self.south) } else { inner };
+                    f(c1, y - 1, [nw, ne, sw, se]);
+                }
+            });
         }
-        // The children's common corner.
-        if cm <= c1 && rm <= r1 {
-            centre(cm, rm);
+        if !self.north.is_empty() {
+            let mut north = Cursor::new(&self.north);
+            points(&self.north, c0, c1, cm, false, |x| {
+                if exists(x, r0) {
+                    let (nw, ne) = (north.at(x - 1), north.at(x));
+                    f(x - 1, r0 - 1, [nw, ne, inner, inner]);
+                }
+            });
         }
+        if !self.south.is_empty() {
+            let mut south = Cursor::new(&self.south);
+            let y = r1 + 1;
+            points(&self.south, c0, c1, cm, false, |x| {
+                if exists(x, y) {
+                    let (sw, se) = (south.at(x - 1), south.at(x));
+                    f(x - 1, r1, [inner, inner, sw, se]);
+                }
+            });
+        }
+        // The children's common corner (a leaf has no children: half 0).
+        if self.half > 0 && cm <= c1 && rm <= r1 {
+            f(cm - 1, rm - 1, [inner; 4]);
+        }
+    }
+}
+
+/// The level of the last run of a side.
+fn last(side: &[(u32, u8)]) -> u8 {
+    side[side.len() - 1].1
+}
+
+/// Reads the runs of one side at increasing positions.
+struct Cursor<'a> {
+    /// The runs, as (last position, level).
+    side: &'a [(u32, u8)],
+    /// The run that held the last position asked for.
+    at: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn new(side: &'a [(u32, u8)]) -> Cursor<'a> {
+        Cursor { side, at: 0 }
+    }
+
+    /// The level of the run holding `pos`, which is no smaller than the last one asked for.
+    fn at(&mut self, pos: u32) -> u8 {
+        while self.side[self.at].0 < pos {
+            self.at += 1;
+        }
+        self.side[self.at].1
     }
 }
 
