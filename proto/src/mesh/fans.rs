@@ -67,7 +67,7 @@ impl FanMesh {
             ring: Ring::default(),
         };
         for n in cut.active_nodes(shape) {
-            m.refresh(shape, cut, n, n.level);
+            m.refresh(shape, cut, n, n.level, false);
         }
         m
     }
@@ -82,7 +82,7 @@ impl FanMesh {
         node: NodeId,
     ) {
         let inner = node.level + u8::from(cut.is_interior(shape, node));
-        self.refresh(shape, cut, node, inner);
+        self.refresh(shape, cut, node, inner, true);
     }
 
     /// Starts (or stops) marking the cells that change, for [`FanMesh::take_dirty`].
@@ -135,16 +135,18 @@ impl FanMesh {
     }
 
     /// Recomputes the junction cells centred on the closure of `node`'s block, whose samples
-    /// all map to active nodes at level `inner` (the node, or its children).
+    /// all map to active nodes at level `inner` (the node, or its children). `settled` says
+    /// that every record is up to date for the cut before the block changed.
     fn refresh<V: Copy + Default>(
         &mut self,
         shape: &TreeShape,
         cut: &Cut<V>,
         node: NodeId,
         inner: u8,
+        settled: bool,
     ) {
         let mut ring = std::mem::take(&mut self.ring);
-        ring.walk(shape, cut, node, inner);
+        ring.walk(shape, cut, node, inner, settled.then_some(&self.cells));
         ring.for_each_cell(shape, |c, r, levels| self.store(c, r, levels));
         self.ring = ring;
     }

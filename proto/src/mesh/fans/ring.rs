@@ -7,11 +7,12 @@
 //! walking each edge from neighbour to neighbour, one ancestor lookup per neighbour; the
 //! column walks reach one sample past each end, so they cover the diagonal corners too.
 
+use super::grid::CellGrid;
 use crate::cut::Cut;
 use crate::tree::{NodeId, TreeShape};
 
-/// The ring around one block: for each side, the active nodes along it in order, as (last
-/// sample covered along the side, level).
+/// The ring around one block: for each side, the active nodes along it in order, and the
+/// levels of the four diagonal neighbours.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Ring {
     /// The block's first and last column and row, inclusive.
@@ -20,14 +21,44 @@ pub(super) struct Ring {
     inner: u8,
     /// Nominal half-size of the block: its children's boundaries lie this far from its origin.
     half: u32,
-    /// Column `c0 - 1`, rows `r0 - 1 ..= r1 + 1` within the grid; empty on the west border.
-    west: Vec<(u32, u8)>,
+    /// Column `c0 - 1`, rows `r0 ..= r1`; empty on the west border.
+    west: Side,
     /// Column `c1 + 1`, rows as `west`; empty on the east border.
-    east: Vec<(u32, u8)>,
+    east: Side,
     /// Row `r0 - 1`, columns `c0 ..= c1`; empty on the north border.
-    north: Vec<(u32, u8)>,
+    north: Side,
     /// Row `r1 + 1`, columns as `north`; empty on the south border.
-    south: Vec<(u32, u8)>,
+    south: Side,
+    /// Levels of the active nodes of the samples diagonally off the block's NW, NE, SW and SE
+    /// corners, where they exist.
+    diagonal: [u8; 4],
+}
+
+/// The active nodes along one side of a block.
+#[derive(Clone, Debug, Default)]
+struct Side {
+    /// Where the first node's block begins along the side (possibly before the block's).
+    start: u32,
+    /// The nodes in order, as (last sample of its block along the side, level).
+    runs: Vec<(u32, u8)>,
+}
+
+impl Side {
+    /// Whether the side exists (the block is not on that border of the grid).
+    fn is_empty(&self) -> bool {
+        self.runs.is_empty()
+    }
+
+    /// The first node's level, if its block reaches `at` or before.
+    fn first_reaching(&self, at: u32) -> Option<u8> {
+        (self.start <= at).then(|| self.runs[0].1)
+    }
+
+    /// The last node's level, if its block reaches `at` or beyond.
+    fn last_reaching(&self, at: u32) -> Option<u8> {
+        let &(last, level) = self.runs.last()?;
+        (last >= at).then_some(level)
+    }
 }
 
 /// The active ancestor of sample `(c, r)`, searched from level `hint` (an active neighbour's
@@ -58,53 +89,91 @@ fn active_near<V: Copy + Default>(
 
 impl Ring {
     /// Walks the ring of `node`'s block, whose samples map to active nodes at level `inner`.
+    /// With the mesh's `records` up to date for the cut before the block changed, a diagonal
+    /// neighbour that no side's node reaches is read from the corner cell, which it shares with
+    /// two other nodes (so it is used by a triangle there and its level is stored) instead of
+    /// searched.
     pub(super) fn walk<V: Copy + Default>(
         &mut self,
         shape: &TreeShape,
         cut: &Cut<V>,
         node: NodeId,
         inner: u8,
+        records: Option<&CellGrid>,
     ) {
         let (c0, r0, c1, r1) = shape.block(node);
         let (w, h) = (shape.width(), shape.height());
         self.block = (c0, r0, c1, r1);
         self.inner = inner;
         self.half = (1u32 << (shape.depth() - node.level)) >> 1;
-        let walk = |out: &mut Vec<(u32, u8)>, fixed: u32, from: u32, to: u32, column: bool| {
-            out.clear();
+        let find = |(c, r): (u32, u32), hint: u8| {
+            // The node's ancestors are interior (it is active or has just split), and so are
+            // the sample's ancestors it shares: those above the highest bit in which the
+            // sample's column or row differs from the block's origin.
+            let differ = (c ^ c0) | (r ^ r0);
+            let floor = shape.depth() - (31 - differ.leading_zeros()) as u8;
+            active_near(shape, cut, (c, r), hint, floor)
+        };
+        let walk = |out: &mut Side, fixed: u32, from: u32, to: u32, column: bool| {
+            out.runs.clear();
             let mut at = from;
             let mut hint = node.level;
             while at <= to {
-                let (c, r) = if column { (fixed, at) } else { (at, fixed) };
-                // The node's ancestors are interior (it is active or has just split), and so
-                // are the sample's ancestors it shares: those above the highest bit in which
-                // the sample's column or row differs from the block's origin.
-                let differ = (c ^ c0) | (r ^ r0);
-                let floor = shape.depth() - (31 - differ.leading_zeros()) as u8;
-                let n = active_near(shape, cut, (c, r), hint, floor);
-                let (_, _, nc1, nr1) = shape.block(n);
+                let n = find(if column { (fixed, at) } else { (at, fixed) }, hint);
+                let (nc0, nr0, nc1, nr1) = shape.block(n);
+                if at == from {
+                    out.start = if column { nr0 } else { nc0 };
+                }
                 let last = if column { nr1 } else { nc1 };
-                out.push((last, n.level));
+                out.runs.push((last, n.level));
                 hint = n.level;
                 at = last + 1;
             }
         };
-        let (top, bottom) = (r0.max(1) - 1, (r1 + 1).min(h - 1));
-        self.west.clear();
-        if c0 > 0 {
-            walk(&mut self.west, c0 - 1, top, bottom, true);
+        let (west, east, north, south) = (c0 > 0, c1 + 1 < w, r0 > 0, r1 + 1 < h);
+        self.west.runs.clear();
+        if west {
+            walk(&mut self.west, c0 - 1, r0, r1, true);
         }
-        self.east.clear();
-        if c1 + 1 < w {
-            walk(&mut self.east, c1 + 1, top, bottom, true);
+        self.east.runs.clear();
+        if east {
+            walk(&mut self.east, c1 + 1, r0, r1, true);
         }
-        self.north.clear();
-        if r0 > 0 {
+        self.north.runs.clear();
+        if north {
             walk(&mut self.north, r0 - 1, c0, c1, false);
         }
-        self.south.clear();
-        if r1 + 1 < h {
+        self.south.runs.clear();
+        if south {
             walk(&mut self.south, r1 + 1, c0, c1, false);
+        }
+        // Each diagonal sample, the corner cell that holds it and its corner's shift there
+        // (wrapping where the sample lies off the grid: then it is skipped).
+        let (w0, n0) = (c0.wrapping_sub(1), r0.wrapping_sub(1));
+        let corners = [
+            (west && north, (w0, n0), (w0, n0), 0),
+            (east && north, (c1 + 1, n0), (c1, n0), 4),
+            (west && south, (w0, r1 + 1), (w0, r1), 8),
+            (east && south, (c1 + 1, r1 + 1), (c1, r1), 12),
+        ];
+        for (k, (exists, sample, cell, shift)) in corners.into_iter().enumerate() {
+            if !exists {
+                continue;
+            }
+            let along = match k {
+                0 => (self.west.first_reaching(r0 - 1)).or(self.north.first_reaching(c0 - 1)),
+                1 => (self.east.first_reaching(r0 - 1)).or(self.north.last_reaching(c1 + 1)),
+                2 => (self.west.last_reaching(r1 + 1)).or(self.south.first_reaching(c0 - 1)),
+                _ => (self.east.last_reaching(r1 + 1)).or(self.south.last_reaching(c1 + 1)),
+            };
+            self.diagonal[k] = along.unwrap_or_else(|| match records {
+                Some(g) => {
+                    let level = (g.get(cell.0, cell.1) >> shift & 15) as u8;
+                    debug_assert!(level > 0, "corner cell {cell:?} does not hold {sample:?}");
+                    level
+                }
+                None => find(sample, node.level).level,
+            });
         }
     }
 
@@ -121,31 +190,49 @@ impl Ring {
         let exists = |x: u32, y: u32| x >= 1 && y >= 1 && x < w && y < h;
         let (cm, rm) = (c0 + self.half, r0 + self.half);
         if !self.west.is_empty() {
-            let mut west = Cursor::new(&self.west);
-            points(&self.west, r0, r1, rm, true, |y| {
+            let mut west = Cursor::new(&self.west.runs);
+            points(&self.west.runs, r0, r1, rm, true, |y| {
                 if exists(c0, y) {
-                    let (nw, sw) = (west.at(y - 1), west.at(y));
-                    let ne = if y == r0 { self.north[0].1 } else { inner };
-                    let se = if y > r1 { self.south[0].1 } else { inner };
+                    let nw = if y == r0 {
+                        self.diagonal[0]
+                    } else {
+                        west.at(y - 1)
+                    };
+                    let sw = if y > r1 { self.diagonal[2] } else { west.at(y) };
+                    let ne = if y == r0 { self.north.runs[0].1 } else { inner };
+                    let se = if y > r1 { self.south.runs[0].1 } else { inner };
                     f(c0 - 1, y - 1, [nw, ne, sw, se]);
                 }
             });
         }
         if !self.east.is_empty() {
-            let mut east = Cursor::new(&self.east);
+            let mut east = Cursor::new(&self.east.runs);
             let x = c1 + 1;
-            points(&self.east, r0, r1, rm, true, |y| {
+            points(&self.east.runs, r0, r1, rm, true, |y| {
                 if exists(x, y) {
-                    let (ne, se) = (east.at(y - 1), east.at(y));
-                    let nw = if y == r0 { last(&self.north) } else { inner };
-                    let sw = if y > r1 { last(&self.south) } else { inner };
+                    let ne = if y == r0 {
+                        self.diagonal[1]
+                    } else {
+                        east.at(y - 1)
+                    };
+                    let se = if y > r1 { self.diagonal[3] } else { east.at(y) };
+                    let nw = if y == r0 {
+                        last(&self.north.runs)
+                    } else {
+                        inner
+                    };
+                    let sw = if y > r1 {
+                        last(&self.south.runs)
+                    } else {
+                        inner
+                    };
                     f(c1, y - 1, [nw, ne, sw, se]);
                 }
             });
         }
         if !self.north.is_empty() {
-            let mut north = Cursor::new(&self.north);
-            points(&self.north, c0, c1, cm, false, |x| {
+            let mut north = Cursor::new(&self.north.runs);
+            points(&self.north.runs, c0, c1, cm, false, |x| {
                 if exists(x, r0) {
                     let (nw, ne) = (north.at(x - 1), north.at(x));
                     f(x - 1, r0 - 1, [nw, ne, inner, inner]);
@@ -153,9 +240,9 @@ impl Ring {
             });
         }
         if !self.south.is_empty() {
-            let mut south = Cursor::new(&self.south);
+            let mut south = Cursor::new(&self.south.runs);
             let y = r1 + 1;
-            points(&self.south, c0, c1, cm, false, |x| {
+            points(&self.south.runs, c0, c1, cm, false, |x| {
                 if exists(x, y) {
                     let (sw, se) = (south.at(x - 1), south.at(x));
                     f(x - 1, r1, [inner, inner, sw, se]);
