@@ -3,10 +3,12 @@
 //! per pose (median and p99 over the poses, best of the runs) and per change, and checks the
 //! final mesh against the oracle.
 //!
-//! `cargo run --release -p relief-proto --example replay -- FILE [RUNS] [POSES] [STAGES]`
+//! `cargo run --release -p relief-proto --example replay -- FILE [RUNS] [POSES] [STAGES] [EVICT_MB]`
 //!
 //! STAGES is `all` (the default), `mirror` (decode and mirror, no fans) or `decode`, to split
-//! the cost.
+//! the cost. EVICT_MB (default 0) writes that many megabytes between poses, untimed, so that
+//! each pose starts with cold caches as in `relief-server bench lod`, where the server's work
+//! runs between the client's.
 
 use relief_proto::codec;
 use relief_proto::delta::Delta;
@@ -56,6 +58,8 @@ fn main() {
         .get(2)
         .map_or(usize::MAX, |s| s.parse().expect("POSES"));
     let stages = args.get(3).map_or("all", String::as_str);
+    let evict_mb: usize = args.get(4).map_or(0, |s| s.parse().expect("EVICT_MB"));
+    let mut evict = vec![0u8; evict_mb << 20];
     let word = |at: usize| <[u8; 4]>::try_from(&file[at..at + 4]).expect("header");
     let f32_at = |at| f32::from_le_bytes(word(at));
     let (w, h) = (u32::from_le_bytes(word(0)), u32::from_le_bytes(word(4)));
@@ -79,7 +83,9 @@ fn main() {
         let mut mesh = FanMesh::new(shape, mirror.cut());
         let mut us = Vec::with_capacity(msgs.len());
         changes = 0;
-        for m in &msgs[1..] {
+        for (k, m) in msgs[1..].iter().enumerate() {
+            evict.fill(k as u8);
+            std::hint::black_box(&evict);
             let t0 = Instant::now();
             changes += pose(m, &geom, &mut mirror, &mut mesh, stages);
             us.push(t0.elapsed().as_secs_f64() * 1e6);

@@ -7,9 +7,9 @@
 use crate::cut::{Cut, CutError};
 use crate::delta::Delta;
 use crate::haar::inverse;
+use crate::paged::Paged;
 use crate::terrain::TerrainGeometry;
 use crate::tree::{NodeId, TreeShape};
-use rustc_hash::FxHashMap;
 
 /// What the mirror knows of a node it holds.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -65,15 +65,17 @@ pub struct Mirror {
     shape: TreeShape,
     /// Height and error code of the root, which is always held.
     root: NodeData,
-    /// Heights and error codes of the children of every interior node, by the node's dense
-    /// index. Children are held exactly while their parent is interior, so a split inserts one
-    /// record and a merge removes one, whatever the number of children.
-    children: FxHashMap<u32, Children>,
+    /// Heights and error codes of the children of every interior node, by the node's level
+    /// and position. Children are held exactly while their parent is interior, so a split
+    /// inserts one record and a merge removes one, whatever the number of children; and
+    /// nodes that split or merge one after another (a delta lists them in Morton order) are
+    /// neighbours in their level's grid, so they share its pages.
+    children: Vec<Paged<Children>>,
 }
 
 /// What the mirror knows of the children of one interior node, by child index (0 = NW, 1 = NE,
 /// 2 = SW, 3 = SE; a child the shape does not have is never read).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 struct Children {
     /// Heights in z quanta.
     z: [i32; 4],
@@ -86,11 +88,6 @@ fn child_index(node: NodeId) -> usize {
     ((node.x & 1) | (node.y & 1) << 1) as usize
 }
 
-/// The key of a node's children's record: its dense index, which fits 32 bits.
-fn key(shape: &TreeShape, node: NodeId) -> u32 {
-    shape.index(node) as u32
-}
-
 impl Mirror {
     /// A mirror holding the root alone, whose height is `root_z` quanta.
     pub fn new(geom: &TerrainGeometry, root_z: i32) -> Mirror {
@@ -101,7 +98,12 @@ impl Mirror {
                 z: root_z,
                 err_code: 0,
             },
-            children: FxHashMap::default(),
+            children: (0..geom.shape.depth())
+                .map(|l| {
+                    let (w, h) = geom.shape.level_dims(l);
+                    Paged::new(w, h)
+                })
+                .collect(),
         }
     }
 
@@ -118,7 +120,7 @@ impl Mirror {
         if !geom.shape.contains(node) {
             return None;
         }
-        let c = self.children.get(&key(&geom.shape, parent))?;
+        let c = self.children[parent.level as usize].get(parent.x, parent.y)?;
         let k = child_index(node);
         Some(NodeData {
             z: c.z[k],
@@ -130,17 +132,20 @@ impl Mirror {
     pub fn held(&self) -> impl Iterator<Item = (u64, NodeData)> + '_ {
         let shape = &self.shape;
         let root = (shape.index(NodeId::ROOT), self.root);
-        let children = self.children.iter().flat_map(move |(&p, c)| {
-            let parent = shape.node(u64::from(p)).expect("a held node exists");
-            shape.children(parent).map(move |(k, n)| {
-                let d = NodeData {
-                    z: c.z[k],
-                    err_code: c.err_code[k],
-                };
-                (shape.index(n), d)
-            })
-        });
-        std::iter::once(root).chain(children)
+        let mut held = vec![root];
+        for (level, grid) in self.children.iter().enumerate() {
+            grid.for_each(|x, y, c| {
+                let level = level as u8;
+                for (k, n) in shape.children(NodeId { level, x, y }) {
+                    let d = NodeData {
+                        z: c.z[k],
+                        err_code: c.err_code[k],
+                    };
+                    held.push((shape.index(n), d));
+                }
+            });
+        }
+        held.into_iter()
     }
 
     /// Applies `delta` and checks its digest: first the merges deepest first (in reverse of their
@@ -157,7 +162,7 @@ impl Mirror {
         let shape = &geom.shape;
         for &m in delta.merges.iter().rev() {
             self.cut.merge(shape, m)?;
-            self.children.remove(&key(shape, m));
+            self.children[m.level as usize].remove(m.x, m.y);
             on_change(&self.cut, Change::Merge(m));
         }
         for s in &delta.splits {
@@ -169,9 +174,8 @@ impl Mirror {
                     self.root.z
                 }
                 Some(p) => {
-                    let c = self
-                        .children
-                        .get_mut(&key(shape, p))
+                    let c = self.children[p.level as usize]
+                        .get_mut(p.x, p.y)
                         .ok_or(CutError::NotSplittable(s.node))?;
                     let k = child_index(s.node);
                     c.err_code[k] = s.err_code;
@@ -182,7 +186,7 @@ impl Mirror {
                 z: inverse(z, s.details),
                 err_code: [0; 4],
             };
-            self.children.insert(key(shape, s.node), c);
+            self.children[s.node.level as usize].insert(s.node.x, s.node.y, c);
             on_change(&self.cut, Change::Split(s.node));
         }
         if self.cut.digest() != delta.digest {
