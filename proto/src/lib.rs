@@ -19,6 +19,8 @@
 //!   patches, tile deltas, the tile cache both ends keep, and snapshots of an active tile set.
 //! - [`mesh`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
 //!   output-sensitive incremental builder the client uses.
+//! - `paged`: a sparse 2D grid of small records in pages, for the fan mesh's cells and the
+//!   mirror's heights.
 pub mod bits;
 pub mod close;
 pub mod codec;
@@ -30,6 +32,7 @@ pub mod mesh;
 pub mod mirror;
 pub mod msg;
 pub mod nodeset;
+mod paged;
 pub mod path;
 pub mod snapshot;
 pub mod terrain;

@@ -21,7 +21,7 @@ use relief_proto::mesh::FanMesh;
 use relief_proto::mirror::Mirror;
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashMap;
 
 /// "No slot": the root's parent, a missing triangle, a free record.
 pub const NONE: u32 = u32::MAX;
@@ -161,25 +161,40 @@ impl Pool {
 /// The node and triangle records of one mirror.
 #[derive(Debug)]
 pub struct Scene {
-    /// Slot of each held node, by dense index.
-    node_slot: FxHashMap<u64, u32>,
+    /// Slot of the root, while it is held.
+    root_slot: Option<u32>,
+    /// First slot of each interior node's block of children (child `k` at `k`), by the node's
+    /// dense index: children are always held together, so one entry stands for four.
+    child_block: FxHashMap<u32, u32>,
+    /// Nodes with a slot, kept so that counting needs no walk.
+    held: usize,
     /// Node records.
     pub nodes: Pool,
     /// Slot of each non-empty junction cell.
     cell_slot: FxHashMap<(u32, u32), u32>,
     /// Cell records.
     pub cells: Pool,
+    /// Nodes whose records [`Scene::apply`] rewrites, each with whether it split in that call:
+    /// a buffer kept between calls.
+    touched: FxHashMap<NodeId, bool>,
+    /// The fan mesh's dirty cells: a buffer kept between calls.
+    dirty: Vec<(u32, u32)>,
 }
 
 impl Scene {
-    /// The records of everything `mirror` holds and every cell of `mesh` (whose dirty list is
-    /// emptied). Splits count as long done: nothing is still growing.
+    /// The records of everything `mirror` holds and every cell of `mesh`, which from now on
+    /// marks the cells that change (and whose marks are cleared). Splits count as long done:
+    /// nothing is still growing.
     pub fn build(geom: &TerrainGeometry, mirror: &Mirror, mesh: &mut FanMesh) -> Scene {
         let mut s = Scene {
-            node_slot: FxHashMap::default(),
+            root_slot: None,
+            child_block: FxHashMap::default(),
+            held: 0,
             nodes: Pool::new(NODE_WORDS, 4),
             cell_slot: FxHashMap::default(),
             cells: Pool::new(CELL_WORDS, 1),
+            touched: FxHashMap::default(),
+            dirty: Vec::new(),
         };
         let mut held: Vec<u64> = mirror.held().map(|(i, _)| i).collect();
         // Parents before children (dense indices go level by level): a node's slot is given
@@ -188,8 +203,8 @@ impl Scene {
         let shape = &geom.shape;
         let root = shape.index(NodeId::ROOT);
         if held.first() == Some(&root) {
-            let slot = s.nodes.alloc();
-            s.node_slot.insert(root, slot);
+            s.root_slot = Some(s.nodes.alloc());
+            s.held = 1;
         }
         for &i in &held {
             if let Some(n) = shape.node(i) {
@@ -201,7 +216,8 @@ impl Scene {
                 s.write_node(geom, mirror, n, LONG_AGO);
             }
         }
-        let _ = mesh.take_dirty();
+        mesh.track_dirty(true);
+        mesh.take_dirty(&mut s.dirty);
         for cell in mesh.cells() {
             s.write_cell(geom, mesh, cell);
         }
@@ -219,40 +235,34 @@ impl Scene {
         now: f32,
     ) {
         let shape = &geom.shape;
-        let mut touched: FxHashSet<NodeId> = FxHashSet::default();
-        let mut split_now: FxHashSet<NodeId> = FxHashSet::default();
+        let mut touched = std::mem::take(&mut self.touched);
         for &c in changes {
             match c {
                 Change::Merge(m) => {
-                    let mut block = None;
-                    for (k, child) in shape.children(m) {
-                        if let Some(slot) = self.node_slot.remove(&shape.index(child)) {
-                            block = Some(slot - k as u32);
-                        }
-                        touched.remove(&child);
-                        split_now.remove(&child);
-                    }
-                    if let Some(b) = block {
+                    if let Some(b) = self.child_block.remove(&(shape.index(m) as u32)) {
                         self.nodes.release(b);
+                        self.held -= shape.children(m).count();
                     }
-                    touched.insert(m);
+                    for (_, child) in shape.children(m) {
+                        touched.remove(&child);
+                    }
+                    touched.entry(m).or_insert(false);
                 }
                 Change::Split(n) => {
                     self.place_children(geom, mirror, n);
                     for (_, child) in shape.children(n) {
-                        touched.insert(child);
+                        touched.entry(child).or_insert(false);
                     }
-                    touched.insert(n);
-                    split_now.insert(n);
+                    touched.insert(n, true);
                 }
             }
         }
         // Every slot is placed by now, so records can be written in any order.
-        for n in touched {
-            let Some(&slot) = self.node_slot.get(&shape.index(n)) else {
+        for (&n, &split_now) in &touched {
+            let Some(slot) = self.slot_of(geom, n) else {
                 continue;
             };
-            let t = if split_now.contains(&n) {
+            let t = if split_now {
                 now
             } else if self.nodes.record(slot)[11] == NONE {
                 LONG_AGO
@@ -261,43 +271,47 @@ impl Scene {
             };
             self.write_node(geom, mirror, n, t);
         }
-        for cell in mesh.take_dirty() {
+        touched.clear();
+        self.touched = touched;
+        let mut dirty = std::mem::take(&mut self.dirty);
+        mesh.take_dirty(&mut dirty);
+        for &cell in &dirty {
             self.write_cell(geom, mesh, cell);
         }
+        self.dirty = dirty;
     }
 
     /// Gives `n`'s held children one block of four consecutive slots (child `k` at `k`), so
     /// that a split or merge writes one place of the node pool, unless they have slots.
     fn place_children(&mut self, geom: &TerrainGeometry, mirror: &Mirror, n: NodeId) {
         let shape = &geom.shape;
-        let held: Vec<(usize, u64)> = shape
-            .children(n)
-            .filter(|&(_, c)| mirror.node(geom, c).is_some())
-            .map(|(k, c)| (k, shape.index(c)))
-            .collect();
-        if held.is_empty() || held.iter().any(|(_, i)| self.node_slot.contains_key(i)) {
+        let key = shape.index(n) as u32;
+        if self.child_block.contains_key(&key) {
             return;
         }
-        let base = self.nodes.alloc();
-        for (k, i) in held {
-            self.node_slot.insert(i, base + k as u32);
+        // The mirror holds a node's children all together, or none of them.
+        let held = shape
+            .children(n)
+            .filter(|&(_, c)| mirror.node(geom, c).is_some())
+            .count();
+        if held > 0 {
+            self.child_block.insert(key, self.nodes.alloc());
+            self.held += held;
         }
     }
 
     /// Nodes with a slot (every node the mirror holds).
     pub fn held_count(&self) -> usize {
-        self.node_slot.len()
+        self.held
     }
 
     fn write_node(&mut self, geom: &TerrainGeometry, mirror: &Mirror, n: NodeId, t_split: f32) {
-        let shape = &geom.shape;
-        let (Some(&slot), Some(d)) = (self.node_slot.get(&shape.index(n)), mirror.node(geom, n))
-        else {
+        let (Some(slot), Some(d)) = (self.slot_of(geom, n), mirror.node(geom, n)) else {
             return;
         };
         let parent = n
             .parent()
-            .and_then(|p| self.node_slot.get(&shape.index(p)).copied())
+            .and_then(|p| self.slot_of(geom, p))
             .unwrap_or(NONE);
         let p = geom.world_pos(n, d.z);
         let b = geom.node_box(n, d.z, d.err_code);
@@ -338,8 +352,7 @@ impl Scene {
         let mut rec = [NONE; CELL_WORDS];
         for (k, t) in tris.iter().enumerate() {
             let Some(t) = t else { continue };
-            let slots =
-                t.0.map(|n| self.node_slot.get(&geom.shape.index(n)).copied());
+            let slots = t.0.map(|n| self.slot_of(geom, n));
             // Every vertex of a triangle of the mesh is held; if not, drop the triangle whole
             // rather than draw it with a missing corner.
             debug_assert!(
@@ -355,7 +368,15 @@ impl Scene {
 
     /// The slot of a held node.
     pub fn slot_of(&self, geom: &TerrainGeometry, n: NodeId) -> Option<u32> {
-        self.node_slot.get(&geom.shape.index(n)).copied()
+        match n.parent() {
+            None => self.root_slot,
+            Some(p) => {
+                let k = (n.x & 1) | (n.y & 1) << 1;
+                let held = geom.shape.contains(n);
+                let block = self.child_block.get(&(geom.shape.index(p) as u32));
+                block.filter(|_| held).map(|&b| b + k)
+            }
+        }
     }
 }
 

@@ -6,56 +6,91 @@
 //! corners of active blocks, of the triangles of the cell centred there: the *junction cells*.
 //! Around an active node these are its fan, which the paper builds from its neighbours.
 //!
-//! [`FanMesh`] keeps the triangles of every junction cell. A split or merge of a node changes
-//! which active node the samples inside its block map to, so the only cells that can change are
-//! the junction cells centred on that block's closure: the corners of the node and of its
-//! children, and the corners of the active neighbours that lie on its edges. Those are found by
-//! walking each edge from neighbour to neighbour, so an update costs a number of ancestor lookups
-//! proportional to the node's neighbours, whatever its size.
+//! [`FanMesh`] keeps every junction cell as one compact record: the levels of its four corners'
+//! active ancestors (a corner's active node is its ancestor at that level, so four levels say
+//! which nodes the cell joins, in 16 bits) and which of its two triangles exist. A split or merge
+//! of a node changes which active node the samples inside its block map to, so the only cells
+//! that can change are the junction cells centred on that block's closure: the corners of the
+//! node and of its children, and the corners of the active neighbours that lie on its edges.
+//! [`ring`] walks the active neighbours just outside the block once, edge by edge; every
+//! corner of those cells is then either inside the block (the node, or its children after a
+//! split) or on that ring, so an update costs one ancestor lookup per neighbour, whatever the
+//! node's size, and no allocation.
+
+mod grid;
+mod ring;
 
 use super::{Tri, cell_triangles};
 use crate::cut::Cut;
 use crate::tree::{NodeId, TreeShape};
-use rustc_hash::FxHashMap;
+use grid::CellGrid;
+use ring::Ring;
 
 /// The triangles of every junction cell of a cut.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct FanMesh {
-    /// Non-empty junction cells, keyed by cell (column, row), with their one or two triangles.
-    cells: FxHashMap<(u32, u32), [Option<Tri>; 2]>,
+    /// Grid width in samples, to tell cells that exist.
+    width: u32,
+    /// Grid height in samples.
+    height: u32,
+    /// Level of the leaves, to turn a corner's level back into its node.
+    depth: u8,
+    /// Junction cells: the levels of the active ancestors of the NW, NE, SW and SE corners, 4
+    /// bits each from the low end. Only non-empty cells are held, so the root is interior and
+    /// no corner is at level 0: a 0 for SW says the first triangle (NW, SW, SE) is missing, a 0
+    /// for NE the second (NW, SE, NE), and a 0 record an empty cell.
+    cells: CellGrid,
     /// Triangles over all cells, kept so that counting costs nothing.
     count: usize,
-    /// Cells whose triangles changed since the last [`FanMesh::take_dirty`], for buffer uploads.
-    dirty: Vec<(u32, u32)>,
+    /// Whether changed cells are marked for [`FanMesh::take_dirty`]: only a consumer that
+    /// takes them (a renderer) should pay for the marks and hold emptied pages until then.
+    track: bool,
     /// Cells recomputed since creation: the work done, to show it is output-sensitive.
     work: u64,
+    /// The active neighbours around the block being updated, kept to reuse its buffers.
+    ring: Ring,
 }
 
 impl FanMesh {
-    /// The mesh of `cut`, built from the corners of its active nodes.
+    /// The mesh of `cut`, built around each of its active nodes. Changed cells are not marked
+    /// (see [`FanMesh::track_dirty`]).
     pub fn new(shape: &TreeShape, cut: &Cut) -> FanMesh {
-        let mut m = FanMesh::default();
+        let (w, h) = (shape.width(), shape.height());
+        let mut m = FanMesh {
+            width: w,
+            height: h,
+            depth: shape.depth(),
+            cells: CellGrid::new(w - 1, h - 1),
+            count: 0,
+            track: false,
+            work: 0,
+            ring: Ring::default(),
+        };
         for n in cut.active_nodes(shape) {
-            for cell in corner_cells(shape, n) {
-                m.recompute(shape, cut, cell);
-            }
+            m.refresh(shape, cut, n, n.level, false);
         }
-        m.dirty.clear();
         m
     }
 
-    /// Brings the mesh up to date after `node` has split or merged in `cut`.
-    pub fn update_around(&mut self, shape: &TreeShape, cut: &Cut, node: NodeId) {
-        let mut cells: Vec<(u32, u32)> = corner_cells(shape, node).collect();
-        for (_, c) in shape.children(node) {
-            cells.extend(corner_cells(shape, c));
+    /// Brings the mesh up to date after `node` has split or merged in `cut`. It must be called
+    /// after each split or merge, before the next one: it takes the node's block to be covered
+    /// by the node (merged) or by its children (split).
+    pub fn update_around(
+        &mut self,
+        shape: &TreeShape,
+        cut: &Cut,
+        node: NodeId,
+    ) {
+        let inner = node.level + u8::from(cut.is_interior(shape, node));
+        self.refresh(shape, cut, node, inner, true);
+    }
+
+    /// Starts (or stops) marking the cells that change, for [`FanMesh::take_dirty`].
+    pub fn track_dirty(&mut self, on: bool) {
+        if !on {
+            self.cells.take_dirty(&mut Vec::new());
         }
-        neighbour_corner_cells(shape, cut, node, &mut cells);
-        cells.sort_unstable();
-        cells.dedup();
-        for cell in cells {
-            self.recompute(shape, cut, cell);
-        }
+        self.track = on;
     }
 
     /// Number of triangles.
@@ -65,27 +100,33 @@ impl FanMesh {
 
     /// All triangles, canonical and sorted (comparable with [`super::oracle`]).
     pub fn triangles(&self) -> Vec<Tri> {
-        let mut v: Vec<Tri> = self.cells.values().flatten().flatten().copied().collect();
+        let mut v: Vec<Tri> = Vec::with_capacity(self.count);
+        self.cells
+            .for_each(|c, r, rec| v.extend(self.decode(c, r, rec).into_iter().flatten()));
         v.sort_unstable();
         v
     }
 
     /// The triangles of cell `(c, r)`.
-    pub fn cell(&self, cell: (u32, u32)) -> [Option<Tri>; 2] {
-        self.cells.get(&cell).copied().unwrap_or([None, None])
+    pub fn cell(&self, (c, r): (u32, u32)) -> [Option<Tri>; 2] {
+        if c + 1 >= self.width || r + 1 >= self.height {
+            return [None, None];
+        }
+        self.decode(c, r, self.cells.get(c, r))
     }
 
     /// Every non-empty junction cell, in no set order.
     pub fn cells(&self) -> Vec<(u32, u32)> {
-        self.cells.keys().copied().collect()
+        let mut v = Vec::new();
+        self.cells.for_each(|c, r, _| v.push((c, r)));
+        v
     }
 
-    /// The cells whose triangles changed since the last call, each once.
-    pub fn take_dirty(&mut self) -> Vec<(u32, u32)> {
-        let mut d = std::mem::take(&mut self.dirty);
-        d.sort_unstable();
-        d.dedup();
-        d
+    /// Replaces `out` with the cells whose triangles changed since the last call, each once, in
+    /// no set order (none unless [`FanMesh::track_dirty`] is on).
+    pub fn take_dirty(&mut self, out: &mut Vec<(u32, u32)>) {
+        out.clear();
+        self.cells.take_dirty(out);
     }
 
     /// Cells recomputed since creation.
@@ -93,74 +134,82 @@ impl FanMesh {
         self.work
     }
 
-    fn recompute(&mut self, shape: &TreeShape, cut: &Cut, (c, r): (u32, u32)) {
+    /// Recomputes the junction cells centred on the closure of `node`'s block, whose samples
+    /// all map to active nodes at level `inner` (the node, or its children). `settled` says
+    /// that every record is up to date for the cut before the block changed.
+    fn refresh(
+        &mut self,
+        shape: &TreeShape,
+        cut: &Cut,
+        node: NodeId,
+        inner: u8,
+        settled: bool,
+    ) {
+        let mut ring = std::mem::take(&mut self.ring);
+        ring.walk(shape, cut, node, inner, settled.then_some(&self.cells));
+        ring.for_each_cell(shape, |c, r, levels| self.store(c, r, levels));
+        self.ring = ring;
+    }
+
+    /// Sets cell `(c, r)` from its corners' active levels (NW, NE, SW, SE).
+    fn store(&mut self, c: u32, r: u32, levels: [u8; 4]) {
         self.work += 1;
-        let at = |cc, rr| cut.active_ancestor(shape, cc, rr);
-        let tris = cell_triangles(at(c, r), at(c + 1, r), at(c, r + 1), at(c + 1, r + 1));
-        let new = tris.iter().flatten().count();
-        let old = self.cells.get(&(c, r)).copied().unwrap_or([None, None]);
-        if old == tris {
-            return;
+        let rec = record(self.depth, c, r, levels);
+        if let Some(old) = self.cells.set(c, r, rec, self.track) {
+            self.count = self.count + triangles(rec) - triangles(old);
         }
-        self.count = self.count + new - old.iter().flatten().count();
-        if new == 0 {
-            self.cells.remove(&(c, r));
-        } else {
-            self.cells.insert((c, r), tris);
+    }
+
+    /// The triangles of cell `(c, r)` with record `rec`.
+    fn decode(&self, c: u32, r: u32, rec: u16) -> [Option<Tri>; 2] {
+        if rec == 0 {
+            return [None, None];
         }
-        self.dirty.push((c, r));
+        let l = |shift: u16| ((rec >> shift) & 15) as u8;
+        let at = |cc: u32, rr: u32, shift: u16| corner_node(self.depth, cc, rr, l(shift));
+        let (nw, ne, sw, se) = (
+            at(c, r, 0),
+            at(c + 1, r, 4),
+            at(c, r + 1, 8),
+            at(c + 1, r + 1, 12),
+        );
+        let [a, b] = cell_triangles(nw, ne, sw, se);
+        [a.filter(|_| l(8) != 0), b.filter(|_| l(4) != 0)]
     }
 }
 
-/// The cells centred on the four corners of `node`'s block that exist in the grid.
-fn corner_cells(shape: &TreeShape, node: NodeId) -> impl Iterator<Item = (u32, u32)> {
-    let (c0, r0, c1, r1) = shape.block(node);
-    let (w, h) = (shape.width(), shape.height());
-    // A corner between samples (c - 1, c) and (r - 1, r) is the cell (c - 1, r - 1).
-    [(c0, r0), (c1 + 1, r0), (c0, r1 + 1), (c1 + 1, r1 + 1)]
-        .into_iter()
-        .filter(move |&(c, r)| c >= 1 && r >= 1 && c < w && r < h)
-        .map(|(c, r)| (c - 1, r - 1))
+/// The record of cell `(c, r)` whose corners' active nodes are at `levels` (NW, NE, SW, SE), in
+/// a tree of depth `depth`.
+///
+/// Two corners have the same active node when their levels are equal and no block boundary of
+/// that level runs between them. Between columns `c` and `c + 1` the boundaries are those of
+/// the levels whose block size divides `c + 1`: the bits that differ between `c` and `c + 1`,
+/// shifted right by the block size's log, are then not all 0.
+fn record(depth: u8, c: u32, r: u32, [lnw, lne, lsw, lse]: [u8; 4]) -> u16 {
+    let (dx, dy) = (c ^ (c + 1), r ^ (r + 1));
+    let same = |la: u8, lb: u8, d: u32| la == lb && d >> (depth - la) == 0;
+    let diagonal = same(lnw, lse, dx | dy);
+    let a = !diagonal && !same(lnw, lsw, dy) && !same(lsw, lse, dx);
+    let b = !diagonal && !same(lnw, lne, dx) && !same(lne, lse, dy);
+    if !(a || b) {
+        return 0;
+    }
+    // A corner only a missing triangle uses is stored as 0.
+    let used = |l: u8, used: bool| if used { u16::from(l) } else { 0 };
+    u16::from(lnw) | used(lne, b) << 4 | used(lsw, a) << 8 | u16::from(lse) << 12
 }
 
-/// Adds the cells centred on `node`'s block boundary at the corners of the active nodes just
-/// outside each edge. Those neighbours are disjoint from the block, so the corners on their side
-/// facing the block lie exactly on the block's edge line.
-fn neighbour_corner_cells(shape: &TreeShape, cut: &Cut, node: NodeId, out: &mut Vec<(u32, u32)>) {
-    let (c0, r0, c1, r1) = shape.block(node);
-    let (w, h) = (shape.width(), shape.height());
-    // A cell (c, r) exists when its four samples do: c + 1 < w and r + 1 < h.
-    let mut push = |c: i64, r: i64| {
-        if c >= 0 && r >= 0 && c + 1 < w as i64 && r + 1 < h as i64 {
-            out.push((c as u32, r as u32));
-        }
-    };
-    // West and east edges: walk the column just outside, neighbour by neighbour.
-    for (col, west) in [(c0 as i64 - 1, true), (c1 as i64 + 1, false)] {
-        if col < 0 || col >= w as i64 {
-            continue;
-        }
-        let mut r = r0;
-        while r <= r1 {
-            let (nc0, nr0, nc1, nr1) = shape.block(cut.active_ancestor(shape, col as u32, r));
-            let c = if west { nc1 as i64 } else { nc0 as i64 - 1 };
-            push(c, nr0 as i64 - 1);
-            push(c, nr1 as i64);
-            r = nr1 + 1;
-        }
-    }
-    // North and south edges: the row just outside.
-    for (row, north) in [(r0 as i64 - 1, true), (r1 as i64 + 1, false)] {
-        if row < 0 || row >= h as i64 {
-            continue;
-        }
-        let mut c = c0;
-        while c <= c1 {
-            let (nc0, nr0, nc1, nr1) = shape.block(cut.active_ancestor(shape, c, row as u32));
-            let r = if north { nr1 as i64 } else { nr0 as i64 - 1 };
-            push(nc0 as i64 - 1, r);
-            push(nc1 as i64, r);
-            c = nc1 + 1;
-        }
+/// Triangles in a cell record: one per corner level it uses besides NW and SE.
+fn triangles(rec: u16) -> usize {
+    usize::from(rec & 0x0f00 != 0) + usize::from(rec & 0x00f0 != 0)
+}
+
+/// The ancestor at `level` of sample `(c, r)` in a tree of depth `depth`.
+fn corner_node(depth: u8, c: u32, r: u32, level: u8) -> NodeId {
+    let s = depth - level;
+    NodeId {
+        level,
+        x: c >> s,
+        y: r >> s,
     }
 }

@@ -14,6 +14,14 @@ fn valid(shape: &TreeShape, tris: &[Tri]) -> MeshReport {
     r
 }
 
+/// The dirty cells, sorted.
+fn dirty(mesh: &mut FanMesh) -> Vec<(u32, u32)> {
+    let mut d = Vec::new();
+    mesh.take_dirty(&mut d);
+    d.sort_unstable();
+    d
+}
+
 #[test]
 fn full_resolution_is_the_grid() {
     let shape = TreeShape::new(5, 4).unwrap();
@@ -37,11 +45,12 @@ fn root_alone_draws_nothing_and_one_split_draws_two() {
     let mut cut = Cut::root(&shape);
     assert!(oracle(&shape, &cut).is_empty());
     let mut mesh = FanMesh::new(&shape, &cut);
+    mesh.track_dirty(true);
     cut.split(&shape, crate::tree::NodeId::ROOT).unwrap();
     mesh.update_around(&shape, &cut, crate::tree::NodeId::ROOT);
     assert_eq!(oracle(&shape, &cut).len(), 2);
     assert_eq!(mesh.triangles(), oracle(&shape, &cut));
-    assert_eq!(mesh.take_dirty(), vec![(3, 3)]);
+    assert_eq!(dirty(&mut mesh), vec![(3, 3)]);
 }
 
 /// A random walk of splits and merges: `ops` picks, each step, a node to split or merge.
@@ -80,13 +89,38 @@ proptest! {
                                         picks in proptest::collection::vec((prop::bool::weighted(0.7), any::<u32>()), 0..150)) {
         let shape = TreeShape::new(w, h).unwrap();
         let mut mesh = FanMesh::new(&shape, &Cut::root(&shape));
+        mesh.track_dirty(true);
+        // What a renderer holds: the cells as last reported dirty.
+        let mut shadow = std::collections::BTreeMap::new();
+        let mut taken = Vec::new();
         let mut failure = None;
         random_ops(&shape, &picks, |cut, node| {
             if failure.is_some() { return; }
             mesh.update_around(&shape, cut, node);
             let truth = oracle(&shape, cut);
-            if mesh.triangles() != truth {
+            if node.x % 2 == 0 {
+                // Take the dirty cells after some changes only, so that they pile up in between.
+                mesh.take_dirty(&mut taken);
+                let before = taken.len();
+                taken.sort_unstable();
+                taken.dedup();
+                if taken.len() != before {
+                    failure = Some(format!("a dirty cell listed twice after {node:?}"));
+                }
+                for &cell in &taken {
+                    shadow.insert(cell, mesh.cell(cell));
+                }
+                let mut drawn: Vec<Tri> = shadow.values().flatten().flatten().copied().collect();
+                drawn.sort_unstable();
+                if drawn != truth {
+                    failure = Some(format!("dirty cells miss a change after {node:?}"));
+                }
+            }
+            if failure.is_some() {
+            } else if mesh.triangles() != truth {
                 failure = Some(format!("incremental differs after {node:?}"));
+            } else if mesh.triangle_count() != truth.len() {
+                failure = Some(format!("triangle count differs after {node:?}"));
             } else if FanMesh::new(&shape, cut).triangles() != truth {
                 failure = Some(format!("from-scratch differs after {node:?}"));
             } else {
@@ -170,6 +204,7 @@ fn three_by_three_root_split_meets_at_one_junction() {
     let shape = TreeShape::new(3, 3).unwrap();
     let mut cut = Cut::root(&shape);
     let mut mesh = FanMesh::new(&shape, &cut);
+    mesh.track_dirty(true);
     cut.split(&shape, NodeId::ROOT).unwrap();
     mesh.update_around(&shape, &cut, NodeId::ROOT);
     let [nw, ne, sw, se] = [0, 1, 2, 3].map(|k| NodeId::ROOT.child(k));
@@ -177,7 +212,7 @@ fn three_by_three_root_split_meets_at_one_junction() {
     expect.sort_unstable();
     assert_eq!(oracle(&shape, &cut), expect);
     assert_eq!(mesh.triangles(), expect);
-    assert_eq!(mesh.take_dirty(), vec![(1, 1)]);
+    assert_eq!(dirty(&mut mesh), vec![(1, 1)]);
     valid(&shape, &expect);
 }
 

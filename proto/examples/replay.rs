@@ -1,0 +1,123 @@
+//! Replays a recorded vertex stream (see `relief-server`'s `record_deltas` example) through the
+//! client's path: decode, apply to the [`Mirror`], update the [`FanMesh`]. It prints the time
+//! per pose (median and p99 over the poses, best of the runs) and per change, and checks the
+//! final mesh against the oracle.
+//!
+//! `cargo run --release -p relief-proto --example replay -- FILE [RUNS] [POSES] [STAGES] [EVICT_MB]`
+//!
+//! STAGES is `all` (the default), `mirror` (decode and mirror, no fans) or `decode`, to split
+//! the cost. EVICT_MB (default 0) writes that many megabytes between poses, untimed, so that
+//! each pose starts with cold caches as in `relief-server bench lod`, where the server's work
+//! runs between the client's.
+
+use relief_proto::codec;
+use relief_proto::delta::Delta;
+use relief_proto::mesh::{FanMesh, oracle};
+use relief_proto::mirror::Mirror;
+use relief_proto::msg::ServerMsg;
+use relief_proto::terrain::TerrainGeometry;
+use std::time::Instant;
+
+fn unwire(bytes: &[u8], geom: &TerrainGeometry) -> Delta {
+    match codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT).expect("decodes") {
+        ServerMsg::Delta(d) => d
+            .delta
+            .unpack(&geom.shape, geom.z_quantum)
+            .expect("unpacks"),
+        other => panic!("expected a delta, got {other:?}"),
+    }
+}
+
+/// One pose, as the client takes it: returns the number of changes. Not inlined, so that a
+/// profile can collect it alone (`valgrind --tool=callgrind --toggle-collect='replay::pose'`).
+#[inline(never)]
+fn pose(
+    msg: &[u8],
+    geom: &TerrainGeometry,
+    mirror: &mut Mirror,
+    mesh: &mut FanMesh,
+    stages: &str,
+) -> usize {
+    let d = unwire(msg, geom);
+    let shape = &geom.shape;
+    match stages {
+        "decode" => {}
+        "mirror" => mirror.apply(geom, &d, |_, _| {}).expect("applies"),
+        _ => mirror
+            .apply(geom, &d, |c, ch| mesh.update_around(shape, c, ch.node()))
+            .expect("applies"),
+    }
+    d.splits.len() + d.merges.len()
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let file = std::fs::read(&args[0]).expect("usage: replay FILE [RUNS] [POSES]");
+    let runs: usize = args.get(1).map_or(3, |s| s.parse().expect("RUNS"));
+    let poses: usize = args
+        .get(2)
+        .map_or(usize::MAX, |s| s.parse().expect("POSES"));
+    let stages = args.get(3).map_or("all", String::as_str);
+    let evict_mb: usize = args.get(4).map_or(0, |s| s.parse().expect("EVICT_MB"));
+    let mut evict = vec![0u8; evict_mb << 20];
+    let word = |at: usize| <[u8; 4]>::try_from(&file[at..at + 4]).expect("header");
+    let f32_at = |at| f32::from_le_bytes(word(at));
+    let (w, h) = (u32::from_le_bytes(word(0)), u32::from_le_bytes(word(4)));
+    let geom = TerrainGeometry::new(w, h, f32_at(8), f32_at(12), f32_at(16)).expect("geometry");
+    let root_z = i32::from_le_bytes(word(20));
+    let mut msgs: Vec<&[u8]> = Vec::new();
+    let mut at = 24;
+    while at < file.len() && msgs.len() <= poses {
+        let len = u32::from_le_bytes(word(at)) as usize;
+        msgs.push(&file[at + 4..at + 4 + len]);
+        at += 4 + len;
+    }
+    let shape = &geom.shape;
+    let mut best: Option<Vec<f64>> = None;
+    let mut changes = 0;
+    for _ in 0..runs {
+        let mut mirror = Mirror::new(&geom, root_z);
+        mirror
+            .apply(&geom, &unwire(msgs[0], &geom), |_, _| {})
+            .expect("initial cut");
+        let mut mesh = FanMesh::new(shape, mirror.cut());
+        let mut us = Vec::with_capacity(msgs.len());
+        changes = 0;
+        for (k, m) in msgs[1..].iter().enumerate() {
+            evict.fill(k as u8);
+            std::hint::black_box(&evict);
+            let t0 = Instant::now();
+            changes += pose(m, &geom, &mut mirror, &mut mesh, stages);
+            us.push(t0.elapsed().as_secs_f64() * 1e6);
+        }
+        if stages == "all" {
+            assert_eq!(
+                mesh.triangles(),
+                oracle(shape, mirror.cut()),
+                "mesh differs"
+            );
+            eprintln!(
+                "final cut: {} triangles, {} junction cells, {} active nodes",
+                mesh.triangle_count(),
+                mesh.cells().len(),
+                mirror.cut().active_count()
+            );
+        }
+        let total = |v: &[f64]| v.iter().sum::<f64>();
+        if best.as_ref().is_none_or(|b| total(&us) < total(b)) {
+            best = Some(us);
+        }
+    }
+    let mut us = best.expect("at least one run");
+    let total: f64 = us.iter().sum();
+    us.sort_by(f64::total_cmp);
+    let q = |p: f64| us[((us.len() - 1) as f64 * p).round() as usize];
+    println!(
+        "{stages}: poses {} changes {changes} ({:.0}/pose): per pose median {:.0} us p99 {:.0} us; per change {:.3} us",
+        us.len(),
+        changes as f64 / us.len() as f64,
+        q(0.5),
+        q(0.99),
+        total / changes as f64,
+    );
+}
