@@ -38,7 +38,7 @@ fn main() -> anyhow::Result<()> {
     for v in [geom.frame.dx, geom.frame.dy, geom.z_quantum] {
         file.write_all(&v.to_le_bytes())?;
     }
-    file.write_all(&store.z()[0].to_le_bytes())?;
+    file.write_all(&store.root_z().to_le_bytes())?;
     let mut write = |delta: &relief_proto::delta::Delta| -> anyhow::Result<()> {
         let bytes = codec::encode(&ServerMsg::Delta(SessionDelta {
             pose_seq: delta.seq,

@@ -51,6 +51,8 @@ pub struct StreamApplied {
 }
 
 /// A session's mirrored state.
+// One per session, made once and never moved in a hot path: the variants' sizes do not matter.
+#[allow(clippy::large_enum_variant)]
 pub enum StreamState {
     /// The vertex stream (paper 000).
     Vertex(VertexState),

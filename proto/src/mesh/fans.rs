@@ -75,12 +75,7 @@ impl FanMesh {
     /// Brings the mesh up to date after `node` has split or merged in `cut`. It must be called
     /// after each split or merge, before the next one: it takes the node's block to be covered
     /// by the node (merged) or by its children (split).
-    pub fn update_around(
-        &mut self,
-        shape: &TreeShape,
-        cut: &Cut,
-        node: NodeId,
-    ) {
+    pub fn update_around(&mut self, shape: &TreeShape, cut: &Cut, node: NodeId) {
         let inner = node.level + u8::from(cut.is_interior(shape, node));
         self.refresh(shape, cut, node, inner, true);
     }
@@ -137,14 +132,7 @@ impl FanMesh {
     /// Recomputes the junction cells centred on the closure of `node`'s block, whose samples
     /// all map to active nodes at level `inner` (the node, or its children). `settled` says
     /// that every record is up to date for the cut before the block changed.
-    fn refresh(
-        &mut self,
-        shape: &TreeShape,
-        cut: &Cut,
-        node: NodeId,
-        inner: u8,
-        settled: bool,
-    ) {
+    fn refresh(&mut self, shape: &TreeShape, cut: &Cut, node: NodeId, inner: u8, settled: bool) {
         let mut ring = std::mem::take(&mut self.ring);
         ring.walk(shape, cut, node, inner, settled.then_some(&self.cells));
         ring.for_each_cell(shape, |c, r, levels| self.store(c, r, levels));

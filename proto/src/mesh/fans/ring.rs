@@ -64,13 +64,7 @@ impl Side {
 /// The active ancestor of sample `(c, r)`, searched from level `hint` (an active neighbour's
 /// level is usually within one of the block's): up while the parent is not interior, else down
 /// while the node is interior. Levels below `floor` are known to be interior.
-fn active_near(
-    shape: &TreeShape,
-    cut: &Cut,
-    (c, r): (u32, u32),
-    hint: u8,
-    floor: u8,
-) -> NodeId {
+fn active_near(shape: &TreeShape, cut: &Cut, (c, r): (u32, u32), hint: u8, floor: u8) -> NodeId {
     let leaf = shape.leaf(c, r);
     let mut l = hint.max(floor).min(shape.depth());
     if cut.is_interior(shape, leaf.ancestor_at(l)) {
