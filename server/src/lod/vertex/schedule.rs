@@ -10,9 +10,11 @@
 //!   move relative to the camera (from the basis vectors' moves: their squares sum to twice the
 //!   chord's square). A group is due when its band's odometer
 //!   passes the reading at filing plus its slack.
-//! - **Wheels.** A band's wheel has 64 buckets of `bound / 16` metres of odometer each; a slack
-//!   beyond the wheel's horizon is cut to it (the group is then examined once per turn, which is
-//!   conservative). Buckets are `Vec`s that keep up to their share of the wheel's entries when
+//! - **Wheels.** A band's wheel has 16 buckets of `bound / 16` metres of odometer each; a slack
+//!   beyond the wheel's horizon (14 buckets, 0.875 of the band's bound) is cut to it (the group
+//!   is then examined once per turn, which is conservative; on fuji_srtm3 no more groups were
+//!   examined than with a horizon of four bounds, and small sessions hold a quarter of the
+//!   bucket headers). Buckets are `Vec`s that keep up to their share of the wheel's entries when
 //!   drained, so filing seldom allocates once the session has warmed up and a burst does not
 //!   hold memory; draining a band touches only the buckets the odometer passed.
 //! - **Entries.** One `u64`: the node packed in 32 bits (level, row, column; inner nodes fit), the
@@ -28,7 +30,7 @@ use relief_proto::view::ViewState;
 /// Quarter-octave bands from 1 m to 2^48 m.
 const BANDS: usize = 192;
 /// Buckets per wheel.
-const WHEEL: u64 = 64;
+const WHEEL: u64 = 16;
 /// Buckets per band bound.
 const BUCKETS_PER_BOUND: f64 = 16.0;
 /// Key units per bucket.
@@ -52,7 +54,13 @@ pub fn band_of(reach: f32) -> usize {
 
 /// The largest reach band `b` holds, metres.
 pub fn band_bound(b: usize) -> f64 {
-    ((b >> 2) as f64).exp2() * (5 + (b & 3)) as f64 / 4.0
+    // 2^(b / 4) built from its exponent bits (b / 4 < 48).
+    f64::from_bits((1023 + (b >> 2) as u64) << 52) * (5 + (b & 3)) as f64 / 4.0
+}
+
+/// Odometer units per metre in band `b`.
+fn per_metre(b: usize) -> f64 {
+    BUCKETS_PER_BOUND * UNITS as f64 / band_bound(b)
 }
 
 /// A node packed in 32 bits: level (4 bits), row and column (14 bits each). Inner nodes fit:
@@ -107,11 +115,13 @@ struct Wheel {
 
 /// All bands' wheels and odometers.
 pub struct Schedule {
+    /// Per band up to the highest one used.
     wheels: Vec<Wheel>,
-    /// Per band, metres of camera-relative motion since the session began.
-    odometers: Vec<f64>,
-    /// Odometer units per metre, per band.
-    per_metre: Vec<f64>,
+    /// Metres the eye travelled since the session began.
+    travel: f64,
+    /// Sum of the rotations' chords since the session began: band `b`'s odometer is
+    /// `travel + band_bound(b) * turn`.
+    turn: f64,
     /// The previous update's eye and view basis.
     previous: Option<(Vec3, [Vec3; 3])>,
     /// Entries due at the next update whatever the motion.
@@ -121,11 +131,9 @@ pub struct Schedule {
 impl Default for Schedule {
     fn default() -> Self {
         Schedule {
-            wheels: (0..BANDS).map(|_| Wheel::default()).collect(),
-            odometers: vec![0.0; BANDS],
-            per_metre: (0..BANDS)
-                .map(|b| BUCKETS_PER_BOUND * UNITS as f64 / band_bound(b))
-                .collect(),
+            wheels: Vec::new(),
+            travel: 0.0,
+            turn: 0.0,
             previous: None,
             next: Vec::new(),
         }
@@ -133,16 +141,20 @@ impl Default for Schedule {
 }
 
 impl Schedule {
+    /// Band `b`'s odometer: metres of camera-relative motion of a point `band_bound(b)` from
+    /// the eye since the session began.
+    fn odometer(&self, b: usize) -> f64 {
+        self.travel + band_bound(b) * self.turn
+    }
+
     /// Advances the odometers by the camera's motion since the last call.
     pub fn advance(&mut self, view: &ViewState) {
         let eye = view.eye();
         let basis = view.basis();
         if let Some((pe, pb)) = self.previous {
             let travel = (eye - pe).length() as f64;
-            let chord = chord(&pb, &basis);
-            for (b, o) in self.odometers.iter_mut().enumerate() {
-                *o += travel + band_bound(b) * chord;
-            }
+            self.travel += travel;
+            self.turn += chord(&pb, &basis);
         }
         self.previous = Some((eye, basis));
     }
@@ -151,9 +163,12 @@ impl Schedule {
     /// `slack` metres. `reach` bounds the distance from the eye of what the group checks.
     pub fn file(&mut self, node: NodeId, generation: u8, slack: f64, reach: f64) {
         let band = band_of((reach + slack) as f32);
-        let per_metre = self.per_metre[band];
+        let per_metre = per_metre(band);
         let slack_units = (slack * per_metre).min(HORIZON_BUCKETS * UNITS as f64);
-        let key = (self.odometers[band] * per_metre + slack_units) as u64;
+        let key = (self.odometer(band) * per_metre + slack_units) as u64;
+        if self.wheels.len() <= band {
+            self.wheels.resize_with(band + 1, Wheel::default);
+        }
         let wheel = &mut self.wheels[band];
         if wheel.buckets.is_empty() {
             wheel.buckets = (0..WHEEL).map(|_| Vec::new()).collect();
@@ -168,17 +183,17 @@ impl Schedule {
         self.next.push(entry(node, 0, generation));
     }
 
-    /// Number of bands, for [`Schedule::drain_band`].
+    /// Number of bands in use, for [`Schedule::drain_band`].
     pub fn bands(&self) -> usize {
-        BANDS
+        self.wheels.len()
     }
 
     /// Moves the entries filed for the next update into `out`; the caller checks each against
     /// the node's current generation.
     pub fn drain_next(&mut self, out: &mut Vec<u64>) {
         out.append(&mut self.next);
-        if self.next.capacity() > 4096 {
-            self.next.shrink_to(1024);
+        if self.next.capacity() > 256 {
+            self.next.shrink_to(64);
         }
     }
 
@@ -186,9 +201,9 @@ impl Schedule {
     /// current generation. Entries filed meanwhile into a band not yet drained may come out in
     /// the same update if already due: examining a group early is only extra work.
     pub fn drain_band(&mut self, band: usize, out: &mut Vec<u64>) {
+        let now = (self.odometer(band) * per_metre(band)) as u64;
         let wheel = &mut self.wheels[band];
         {
-            let now = (self.odometers[band] * self.per_metre[band]) as u64;
             let target = now / UNITS;
             if wheel.live == 0 {
                 wheel.cursor = target;
@@ -242,10 +257,7 @@ impl Schedule {
                     + w.buckets.iter().map(|b| b.capacity() * 8).sum::<usize>()
             })
             .sum();
-        wheels
-            + self.next.capacity() * 8
-            + self.wheels.capacity() * std::mem::size_of::<Wheel>()
-            + (self.odometers.capacity() + self.per_metre.capacity()) * 8
+        wheels + self.next.capacity() * 8 + self.wheels.capacity() * std::mem::size_of::<Wheel>()
     }
 }
 
