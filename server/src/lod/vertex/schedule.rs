@@ -8,7 +8,8 @@
 //! - **Odometers.** Each band's odometer advances by the eye's travel plus the band's bound times
 //!   the chord of the camera's rotation, `2 sin(theta / 2)`, the most a point that far away can
 //!   move relative to the camera (from the basis vectors' moves: their squares sum to twice the
-//!   chord's square). A group is due when its band's odometer
+//!   chord's square); all bands' odometers come from two running sums, the travel and the
+//!   chords. A group is due when its band's odometer
 //!   passes the reading at filing plus its slack.
 //! - **Wheels.** A band's wheel has 16 buckets of `bound / 16` metres of odometer each; a slack
 //!   beyond the wheel's horizon (14 buckets, 0.875 of the band's bound) is cut to it (the group
