@@ -36,6 +36,14 @@ fn morton8(x: u32, y: u32) -> u32 {
     spread4(x & 15) | (spread4(y & 15) << 1)
 }
 
+/// Where `node`'s page lies in its superpage's table.
+#[inline]
+fn page_in_super(node: NodeId) -> usize {
+    let mask = (1 << (SUPER_SHIFT - PAGE_SHIFT)) - 1;
+    (((node.y >> PAGE_SHIFT) & mask) << (SUPER_SHIFT - PAGE_SHIFT)
+        | ((node.x >> PAGE_SHIFT) & mask)) as usize
+}
+
 /// The inverse of [`morton8`]'s even bits.
 const fn compact4(m: u32) -> u32 {
     (m & 1) | ((m >> 1) & 2) | ((m >> 2) & 4) | ((m >> 3) & 8)
@@ -52,6 +60,14 @@ struct Level {
     width: u32,
     /// Dense index of the level's first node ([`TreeShape::level_offset`]).
     offset: u64,
+}
+
+impl Level {
+    /// Where `node`'s superpage lies in the directory (`node` must be of this level's size).
+    #[inline]
+    fn super_index(&self, node: NodeId) -> usize {
+        ((node.y >> SUPER_SHIFT) * self.cols + (node.x >> SUPER_SHIFT)) as usize
+    }
 }
 
 /// A set of inner nodes: see the module docs.
@@ -167,11 +183,8 @@ impl NodeSet {
         } else {
             0
         };
-        let mask = (1 << (SUPER_SHIFT - PAGE_SHIFT)) - 1;
-        let p = ((node.y >> PAGE_SHIFT) & mask) << (SUPER_SHIFT - PAGE_SHIFT)
-            | ((node.x >> PAGE_SHIFT) & mask);
         (
-            self.supers[sup as usize][p as usize] as usize,
+            self.supers[sup as usize][page_in_super(node)] as usize,
             morton8(node.x, node.y),
         )
     }
@@ -226,7 +239,7 @@ impl NodeSet {
             self.levels[l].dir = vec![0; n];
         }
         let level = &self.levels[l];
-        let d = ((node.y >> SUPER_SHIFT) * level.cols + (node.x >> SUPER_SHIFT)) as usize;
+        let d = level.super_index(node);
         let mut sup = level.dir[d];
         if sup == 0 {
             sup = match self.free_supers.pop() {
@@ -239,9 +252,7 @@ impl NodeSet {
             };
             self.levels[l].dir[d] = sup;
         }
-        let mask = (1 << (SUPER_SHIFT - PAGE_SHIFT)) - 1;
-        let p = (((node.y >> PAGE_SHIFT) & mask) << (SUPER_SHIFT - PAGE_SHIFT)
-            | ((node.x >> PAGE_SHIFT) & mask)) as usize;
+        let p = page_in_super(node);
         let mut page = self.supers[sup as usize][p];
         if page == 0 {
             page = match self.free_pages.pop() {
@@ -299,11 +310,9 @@ impl NodeSet {
     /// Returns `page`, now empty, to the free list, and its superpage too if that empties.
     fn free_page(&mut self, node: NodeId, page: u32) {
         let level = &mut self.levels[node.level as usize];
-        let d = ((node.y >> SUPER_SHIFT) * level.cols + (node.x >> SUPER_SHIFT)) as usize;
+        let d = level.super_index(node);
         let sup = level.dir[d] as usize;
-        let mask = (1 << (SUPER_SHIFT - PAGE_SHIFT)) - 1;
-        let p = (((node.y >> PAGE_SHIFT) & mask) << (SUPER_SHIFT - PAGE_SHIFT)
-            | ((node.x >> PAGE_SHIFT) & mask)) as usize;
+        let p = page_in_super(node);
         self.supers[sup][p] = 0;
         self.free_pages.push(page);
         self.super_live[sup] -= 1;

@@ -85,10 +85,10 @@ pub fn predicted_code(details: [i32; 3], quantum: f32) -> u8 {
 
 impl Delta {
     /// Puts merges and splits in wire order: by level, then Morton code (parents before children).
+    /// Each node's key is computed once.
     pub fn canonicalize(&mut self) {
-        self.merges.sort_unstable_by_key(|&n| (n.level, morton(n)));
-        self.splits
-            .sort_unstable_by_key(|s| (s.node.level, morton(s.node)));
+        self.merges.sort_by_cached_key(|&n| wire_key(n));
+        self.splits.sort_by_cached_key(|s| wire_key(s.node));
     }
 
     /// Whether the delta changes nothing.
@@ -228,6 +228,12 @@ impl Delta {
 }
 
 /// The Morton (Z-order) code of a node within its level: x and y bits interleaved.
+/// A node's place in wire order as one integer: its level, then its Morton code within the level
+/// (codes take at most 30 bits).
+pub fn wire_key(n: NodeId) -> u64 {
+    (n.level as u64) << 58 | morton(n)
+}
+
 pub(crate) fn morton(n: NodeId) -> u64 {
     spread(n.x) | (spread(n.y) << 1)
 }

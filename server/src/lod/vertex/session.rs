@@ -55,19 +55,6 @@ pub struct VertexSession {
     max_interior: usize,
 }
 
-/// The wire order of a node ([`Delta::canonicalize`]): level, then Morton code.
-fn canonical_key(n: NodeId) -> u64 {
-    let spread = |v: u32| {
-        let mut x = v as u64 & 0xFFFF_FFFF;
-        x = (x | x << 16) & 0x0000_FFFF_0000_FFFF;
-        x = (x | x << 8) & 0x00FF_00FF_00FF_00FF;
-        x = (x | x << 4) & 0x0F0F_0F0F_0F0F_0F0F;
-        x = (x | x << 2) & 0x3333_3333_3333_3333;
-        (x | x << 1) & 0x5555_5555_5555_5555
-    };
-    (n.level as u64) << 58 | spread(n.x) | spread(n.y) << 1
-}
-
 impl VertexSession {
     /// A session whose initial cut is computed for `view` (all groups due at the first update).
     pub fn new(engine: &VertexEngine<'_>, view: &ViewState, p: &LodParams) -> VertexSession {
@@ -178,9 +165,7 @@ impl VertexSession {
             trim(&mut due, peak);
             self.due = due;
         }
-        // Each node's wire key computed once, one sort each.
-        delta.merges.sort_by_cached_key(|&n| canonical_key(n));
-        delta.splits.sort_by_cached_key(|s| canonical_key(s.node));
+        delta.canonicalize();
         delta.digest = self.cut.digest();
         delta
     }
