@@ -6,14 +6,16 @@
 pub enum CloseReason {
     /// The server is shutting down or restarting: reconnect and resume.
     Draining,
-    /// A frame did not decode, or a text frame arrived.
+    /// A frame did not decode, a text frame arrived, or a text frame was not UTF-8.
     Malformed,
     /// A message exceeded the server's size limit.
     TooLarge,
     /// The hello's protocol version is not the server's.
     Version,
     /// A message that is not allowed at this point (a second hello, a pose before the hello,
-    /// an acknowledgement of a delta never sent).
+    /// an acknowledgement of a delta never sent), or a frame that breaks RFC 6455 (reserved
+    /// bits or opcodes, an unmasked frame, a fragmented or oversized control frame, a stray
+    /// continuation frame).
     Protocol,
     /// A camera with NaN or infinite values, or far outside the terrain.
     BadCamera,
@@ -33,11 +35,14 @@ pub enum CloseReason {
     Internal,
     /// The server is starting and has no terrain yet: retry shortly.
     NotReady,
+    /// The session's cut reached the server's limit of interior nodes: raise tau or shrink
+    /// the viewport.
+    CutLimit,
 }
 
 impl CloseReason {
     /// Every reason, for documentation and tests.
-    pub const ALL: [CloseReason; 14] = [
+    pub const ALL: [CloseReason; 15] = [
         CloseReason::Draining,
         CloseReason::Malformed,
         CloseReason::TooLarge,
@@ -52,6 +57,7 @@ impl CloseReason {
         CloseReason::SlowReader,
         CloseReason::Internal,
         CloseReason::NotReady,
+        CloseReason::CutLimit,
     ];
 
     /// The WebSocket close code (RFC 6455 section 7.4; 4000-4999 are this protocol's own).
@@ -71,6 +77,7 @@ impl CloseReason {
             CloseReason::SlowReader => 4007,
             CloseReason::Internal => 1011,
             CloseReason::NotReady => 4008,
+            CloseReason::CutLimit => 4009,
         }
     }
 
@@ -96,6 +103,7 @@ impl CloseReason {
             CloseReason::SlowReader => "slow_reader",
             CloseReason::Internal => "internal",
             CloseReason::NotReady => "not_ready",
+            CloseReason::CutLimit => "cut_limit",
         }
     }
 

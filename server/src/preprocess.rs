@@ -27,6 +27,33 @@ pub fn default_quantum(dem: &Dem) -> f64 {
     if integral { 1.0 } else { 0.1 }
 }
 
+/// Checks that heights from `lo` to `hi` metres keep their relief under a z quantum of `q`
+/// metres: every height fits the store's 24-bit integers, and the range does not round to
+/// nothing. Heights are stored as whole quanta, so an out-of-range quantum would otherwise
+/// corrupt every height silently (clamped to the integer range, or all rounded to zero).
+pub fn check_quantum(q: f64, lo: f64, hi: f64) -> Result<(), String> {
+    if !(q.is_finite() && q > 0.0) {
+        return Err(format!(
+            "the z quantum must be a positive number of metres, got {q}"
+        ));
+    }
+    let reach = lo.abs().max(hi.abs());
+    let limit = f64::from(crate::store::layout::Z_LIMIT);
+    if reach / q > limit {
+        return Err(format!(
+            "a z quantum of {q} m cannot hold heights from {lo} to {hi} m in the store's 24-bit              integers; use at least {:.3e} m",
+            reach / limit
+        ));
+    }
+    if hi > lo && q > hi - lo {
+        return Err(format!(
+            "a z quantum of {q} m is larger than the terrain's height range ({lo} to {hi} m):              every height would round to nearly the same value; use at most {} m",
+            hi - lo
+        ));
+    }
+    Ok(())
+}
+
 /// Builds the vertex-quadtree store of `dem` at `path`.
 pub fn build_store(
     dem: &Dem,
@@ -35,12 +62,41 @@ pub fn build_store(
     tile_size: u32,
     progress: bool,
 ) -> Result<BuildReport, StoreError> {
+    build(dem, path, quantum, tile_size, progress, None)
+}
+
+/// Builds the store of `dem` at `path` for the server's cache, recording `cache_key` (see
+/// [`crate::store::StoreMeta::cache_key`]); default quantum and tile size.
+pub fn build_cached_store(
+    dem: &Dem,
+    path: &Path,
+    cache_key: &str,
+) -> Result<BuildReport, StoreError> {
+    build(
+        dem,
+        path,
+        None,
+        crate::store::DEFAULT_TILE_SIZE,
+        true,
+        Some(cache_key.to_string()),
+    )
+}
+
+fn build(
+    dem: &Dem,
+    path: &Path,
+    quantum: Option<f64>,
+    tile_size: u32,
+    progress: bool,
+    cache_key: Option<String>,
+) -> Result<BuildReport, StoreError> {
     let quantum = quantum.unwrap_or_else(|| default_quantum(dem));
     let voids: Vec<bool> = (0..dem.heights.len()).map(|i| dem.is_void(i)).collect();
     let (lo, hi) = dem
         .heights
         .iter()
         .fold((f32::MAX, f32::MIN), |(a, b), &h| (a.min(h), b.max(h)));
+    check_quantum(quantum, f64::from(lo), f64::from(hi)).map_err(StoreError::Input)?;
     let input = StoreInput {
         width: dem.width,
         height: dem.height,
@@ -56,6 +112,7 @@ pub fn build_store(
             height_min: lo as f64,
             height_max: hi as f64,
             void_count: voids.iter().filter(|v| **v).count() as u64,
+            cache_key,
         },
     };
     let bar = crate::bench::progress_bar(progress, 1000, "tree and tiles");
@@ -67,4 +124,31 @@ pub fn build_store(
         tree_s,
         tiles_s,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_quantum_that_would_corrupt_heights_is_refused() {
+        // Issue 12: at 1e-9 m every height became 2.147 m (clamped), at 1e9 m 0 m.
+        let d = crate::dem::embedded_default().unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("q.relief");
+        for (q, needle) in [(1e-9, "24-bit"), (1e9, "height range"), (-1.0, "positive")] {
+            let e = build_store(&d, &path, Some(q), 64, false)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(needle), "{q}: {e}");
+            assert!(!path.exists());
+        }
+        assert!(build_store(&d, &path, Some(0.01), 64, false).is_ok());
+        assert!(
+            check_quantum(1.0, 5.0, 5.0).is_ok(),
+            "a flat terrain takes any quantum"
+        );
+        assert!(check_quantum(1e-4, -800.0, 800.0).is_ok());
+        assert!(check_quantum(1e-4, -900.0, 800.0).is_err());
+    }
 }

@@ -67,6 +67,27 @@ pub struct ServeArgs {
     /// On SIGTERM or Ctrl-C, seconds to wait for sessions to close before exiting [default: 5].
     #[arg(long, env = "RELIEF_DRAIN_TIMEOUT_S")]
     pub drain_timeout_s: Option<f64>,
+    /// Answer 408 to a request whose body has not fully arrived this many seconds after its
+    /// headers (against slow bodies) [default: 10].
+    #[arg(long, env = "RELIEF_BODY_TIMEOUT_S")]
+    pub body_timeout_s: Option<f64>,
+    /// Most open connections (HTTP and WebSocket); lowered to fit the process's open-file
+    /// limit. Past it, `/healthz` and `/readyz` still answer and everything else gets 503
+    /// [default: 16384, or max_sessions + 1000 if more].
+    #[arg(long, env = "RELIEF_MAX_CONNECTIONS")]
+    pub max_connections: Option<u32>,
+    /// Most open connections from one IP address [default: max_sessions_per_ip + 100].
+    #[arg(long, env = "RELIEF_MAX_CONNECTIONS_PER_IP")]
+    pub max_connections_per_ip: Option<u32>,
+    /// Sessions being opened (a resume rebuilt) at once; more wait their turn
+    /// [default: the number of cores].
+    #[arg(long, env = "RELIEF_MAX_OPENINGS")]
+    pub max_openings: Option<u32>,
+    /// Resume work one IP address may ask for, in interior nodes of resumed cuts per second
+    /// (bursts of twice as many); a resume over it waits, or is refused when the wait would
+    /// pass 10 s [default: 1000000].
+    #[arg(long, env = "RELIEF_RESUME_NODES_PER_S_PER_IP")]
+    pub resume_nodes_per_s_per_ip: Option<f64>,
 }
 
 /// The TOML file: the same options as the flags.
@@ -99,6 +120,16 @@ pub struct FileConfig {
     pub max_cut_nodes: Option<u32>,
     /// See [`ServeArgs::drain_timeout_s`].
     pub drain_timeout_s: Option<f64>,
+    /// See [`ServeArgs::body_timeout_s`].
+    pub body_timeout_s: Option<f64>,
+    /// See [`ServeArgs::max_connections`].
+    pub max_connections: Option<u32>,
+    /// See [`ServeArgs::max_connections_per_ip`].
+    pub max_connections_per_ip: Option<u32>,
+    /// See [`ServeArgs::max_openings`].
+    pub max_openings: Option<u32>,
+    /// See [`ServeArgs::resume_nodes_per_s_per_ip`].
+    pub resume_nodes_per_s_per_ip: Option<f64>,
 }
 
 /// Which terrain to serve.
@@ -133,6 +164,16 @@ pub struct Limits {
     pub max_cut_nodes: u32,
     /// Longest wait for sessions to end on shutdown.
     pub drain_timeout: Duration,
+    /// Longest time a request body may take to arrive after the headers.
+    pub body_timeout: Duration,
+    /// Most open connections (before the open-file limit lowers it).
+    pub max_connections: u32,
+    /// Most open connections per IP address.
+    pub max_connections_per_ip: u32,
+    /// Sessions opened at once.
+    pub max_openings: u32,
+    /// Interior nodes of resumed cuts per second per IP address.
+    pub resume_nodes_per_s_per_ip: f64,
 }
 
 impl Default for Limits {
@@ -147,6 +188,11 @@ impl Default for Limits {
             max_in_flight: 4,
             max_cut_nodes: 8_000_000,
             drain_timeout: Duration::from_secs(5),
+            body_timeout: Duration::from_secs(10),
+            max_connections: 16_384,
+            max_connections_per_ip: 1100,
+            max_openings: std::thread::available_parallelism().map_or(2, |n| n.get() as u32),
+            resume_nodes_per_s_per_ip: 1.0e6,
         }
     }
 }
@@ -218,6 +264,16 @@ fn positive(name: &str, v: u32) -> Result<u32, ConfigError> {
     }
 }
 
+fn rate_of(name: &str, r: f64) -> Result<f64, ConfigError> {
+    if r.is_finite() && r > 0.0 {
+        Ok(r)
+    } else {
+        Err(ConfigError::Invalid(format!(
+            "{name} must be a positive number, got {r}"
+        )))
+    }
+}
+
 /// The default cache folder.
 pub fn default_cache_dir() -> PathBuf {
     if let Some(x) = std::env::var_os("XDG_CACHE_HOME").filter(|x| !x.is_empty()) {
@@ -260,15 +316,12 @@ impl ServeArgs {
             (None, Some(d)) => TerrainSource::Dem(d, self.dem_args.options()),
             (None, None) => TerrainSource::Embedded,
         };
-        let rate = self
-            .conn_rate_per_ip
-            .or(file.conn_rate_per_ip)
-            .unwrap_or(d.conn_rate_per_ip);
-        if !(rate.is_finite() && rate > 0.0) {
-            return Err(ConfigError::Invalid(format!(
-                "conn_rate_per_ip must be positive, got {rate}"
-            )));
-        }
+        let rate = rate_of(
+            "conn_rate_per_ip",
+            self.conn_rate_per_ip
+                .or(file.conn_rate_per_ip)
+                .unwrap_or(d.conn_rate_per_ip),
+        )?;
         let max_message_bytes = positive(
             "max_message_bytes",
             self.max_message_bytes
@@ -281,20 +334,22 @@ impl ServeArgs {
                 relief_proto::codec::HARD_LIMIT
             )));
         }
+        let max_sessions = positive(
+            "max_sessions",
+            self.max_sessions
+                .or(file.max_sessions)
+                .unwrap_or(d.max_sessions),
+        )?;
+        let max_sessions_per_ip = positive(
+            "max_sessions_per_ip",
+            self.max_sessions_per_ip
+                .or(file.max_sessions_per_ip)
+                .unwrap_or(d.max_sessions_per_ip),
+        )?;
         let limits = Limits {
             max_message_bytes,
-            max_sessions: positive(
-                "max_sessions",
-                self.max_sessions
-                    .or(file.max_sessions)
-                    .unwrap_or(d.max_sessions),
-            )?,
-            max_sessions_per_ip: positive(
-                "max_sessions_per_ip",
-                self.max_sessions_per_ip
-                    .or(file.max_sessions_per_ip)
-                    .unwrap_or(d.max_sessions_per_ip),
-            )?,
+            max_sessions,
+            max_sessions_per_ip,
             idle_timeout: match self.idle_timeout_s.or(file.idle_timeout_s) {
                 Some(s) => seconds("idle_timeout_s", s)?,
                 None => d.idle_timeout,
@@ -320,6 +375,36 @@ impl ServeArgs {
                 Some(s) => seconds("drain_timeout_s", s)?,
                 None => d.drain_timeout,
             },
+            body_timeout: match self.body_timeout_s.or(file.body_timeout_s) {
+                Some(s) => seconds("body_timeout_s", s)?,
+                None => d.body_timeout,
+            },
+            max_connections: positive(
+                "max_connections",
+                self.max_connections
+                    .or(file.max_connections)
+                    .unwrap_or(d.max_connections.max(max_sessions.saturating_add(1000))),
+            )?,
+            // Every session is a connection: by default an address may hold its sessions
+            // and a hundred HTTP connections besides.
+            max_connections_per_ip: positive(
+                "max_connections_per_ip",
+                self.max_connections_per_ip
+                    .or(file.max_connections_per_ip)
+                    .unwrap_or(max_sessions_per_ip.saturating_add(100)),
+            )?,
+            max_openings: positive(
+                "max_openings",
+                self.max_openings
+                    .or(file.max_openings)
+                    .unwrap_or(d.max_openings),
+            )?,
+            resume_nodes_per_s_per_ip: rate_of(
+                "resume_nodes_per_s_per_ip",
+                self.resume_nodes_per_s_per_ip
+                    .or(file.resume_nodes_per_s_per_ip)
+                    .unwrap_or(d.resume_nodes_per_s_per_ip),
+            )?,
         };
         let addr = resolve_addr(
             self.addr

@@ -11,6 +11,7 @@ use axum::body::Body;
 use axum::extract::State;
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
+use relief_proto::close::CloseReason;
 use relief_proto::codec;
 use relief_proto::cut::Cut;
 use relief_proto::msg::{LodRequest, LodResponse, PROTOCOL_VERSION, WireDelta};
@@ -38,6 +39,18 @@ pub enum ApiError {
     /// No such resource; the message says why.
     #[error("{0}")]
     NotFoundWhy(String),
+    /// The body did not arrive within the body timeout.
+    #[error("{0}")]
+    Timeout(String),
+    /// The body is larger than the endpoint takes.
+    #[error("{0}")]
+    TooLarge(String),
+    /// The server is at a limit; retry later.
+    #[error("{0}")]
+    Unavailable(String),
+    /// The client's address is at a limit.
+    #[error("{0}")]
+    TooMany(String),
     /// A server fault (details are logged, not sent).
     #[error("internal error")]
     Internal,
@@ -49,6 +62,10 @@ impl IntoResponse for ApiError {
             ApiError::NotReady => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::BadRequest(_) => StatusCode::BAD_REQUEST,
             ApiError::NotFound | ApiError::NotFoundWhy(_) => StatusCode::NOT_FOUND,
+            ApiError::Timeout(_) => StatusCode::REQUEST_TIMEOUT,
+            ApiError::TooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::Unavailable(_) => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::TooMany(_) => StatusCode::TOO_MANY_REQUESTS,
             ApiError::Internal => StatusCode::INTERNAL_SERVER_ERROR,
         };
         (
@@ -61,6 +78,36 @@ impl IntoResponse for ApiError {
 
 fn ready(state: &AppState) -> Result<Arc<Terrain>, ApiError> {
     state.terrain().ok_or(ApiError::NotReady)
+}
+
+/// Reads a whole request body of at most `max` bytes, within the body timeout: a client that
+/// sends its body slowly (or not at all) holds nothing for longer than that.
+async fn read_body(
+    state: &AppState,
+    body: Body,
+    max: usize,
+) -> Result<axum::body::Bytes, ApiError> {
+    let limit = state.limits.body_timeout;
+    match tokio::time::timeout(limit, axum::body::to_bytes(body, max)).await {
+        Err(_) => {
+            state.metrics.error(super::metrics::ErrorKind::BodyTimeout);
+            Err(ApiError::Timeout(format!(
+                "the request body did not arrive within {:.0} s",
+                limit.as_secs_f64()
+            )))
+        }
+        Ok(Ok(b)) => Ok(b),
+        Ok(Err(e)) => {
+            state.metrics.error(super::metrics::ErrorKind::BadRequest);
+            let too_large = std::error::Error::source(&e)
+                .is_some_and(|s| s.is::<http_body_util::LengthLimitError>());
+            Err(if too_large {
+                ApiError::TooLarge(format!("the request body is larger than {max} bytes"))
+            } else {
+                ApiError::BadRequest(format!("the request body is unreadable: {e}"))
+            })
+        }
+    }
 }
 
 /// `GET /v1/terrain`: the terrain's metadata as JSON.
@@ -95,16 +142,14 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
         state.metrics.error(super::metrics::ErrorKind::BadRequest);
         ApiError::BadRequest(e)
     };
-    // Read the body only when a computation slot is free.
+    // The body first, within the body timeout; then a computation slot. A slow body holds
+    // no slot, and a waiting request holds at most one message.
+    let body = read_body(&state, body, state.limits.max_message_bytes as usize).await?;
     let _slot = state
         .one_shots
         .acquire()
         .await
         .map_err(|_| ApiError::NotReady)?;
-    let max = state.limits.max_message_bytes as usize;
-    let body = axum::body::to_bytes(body, max)
-        .await
-        .map_err(|_| bad(format!("the body is unreadable or larger than {max} bytes")))?;
     let req: LodRequest = codec::decode(&body, state.limits.max_message_bytes as usize)
         .map_err(|e| bad(e.to_string()))?;
     if req.version != PROTOCOL_VERSION {
@@ -142,6 +187,13 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
         };
         let view = ViewState::new(&camera, &req.lens.into());
         let target = engine.initial_cut(&view, &params, &mut UpdateStats::default());
+        if target.interior_count() >= max_nodes {
+            return Err(format!(
+                "{}: {}",
+                CloseReason::CutLimit.name(),
+                validate::cut_limit(max_nodes)
+            ));
+        }
         let delta = diff_delta(&engine, &base, &target, 1);
         let resp = LodResponse {
             delta: WireDelta::pack(&delta, shape, engine.geometry().z_quantum),
@@ -167,6 +219,11 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
 /// Most points in one `POST /v1/heights` request.
 pub const MAX_HEIGHT_POINTS: usize = 50_000;
 
+/// Largest `POST /v1/heights` body, bytes: [`MAX_HEIGHT_POINTS`] points written by any JSON
+/// library at full `f64` precision (`[-1234567.8901234567,-1234567.8901234567],` is 42 bytes;
+/// 64 leaves room for spaces and exponents).
+pub const MAX_HEIGHTS_BODY: usize = 64 * MAX_HEIGHT_POINTS + 1024;
+
 /// The body of `POST /v1/heights`.
 #[derive(Debug, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -177,18 +234,17 @@ pub struct HeightsRequest {
 
 /// `POST /v1/heights`: terrain heights in metres at world positions (the nearest sample's,
 /// as stored; `null` outside the grid). JSON in, JSON out.
-pub async fn heights(
-    State(state): State<Arc<AppState>>,
-    body: Result<Json<HeightsRequest>, axum::extract::rejection::JsonRejection>,
-) -> Result<Response, ApiError> {
+pub async fn heights(State(state): State<Arc<AppState>>, body: Body) -> Result<Response, ApiError> {
     let t = ready(&state)?;
-    let Json(req) = body.map_err(|e| {
+    let body = read_body(&state, body, MAX_HEIGHTS_BODY).await?;
+    let bad = |e: String| {
         state.metrics.error(super::metrics::ErrorKind::BadRequest);
-        ApiError::BadRequest(e.body_text())
-    })?;
+        ApiError::BadRequest(e)
+    };
+    let req: HeightsRequest = serde_json::from_slice(&body)
+        .map_err(|e| bad(format!("the body is not a heights request: {e}")))?;
     if req.points.len() > MAX_HEIGHT_POINTS {
-        state.metrics.error(super::metrics::ErrorKind::BadRequest);
-        return Err(ApiError::BadRequest(format!(
+        return Err(bad(format!(
             "{} points requested; at most {MAX_HEIGHT_POINTS} per request",
             req.points.len()
         )));

@@ -1,62 +1,63 @@
-//! Admission limits: sessions in all and per IP address, and the per-IP connection rate.
+//! Admission limits: slots counted in all and per IP address (sessions, connections), and
+//! per-address token buckets (the connection rate, the resume work).
 //!
-//! A session holds a [`SessionPermit`]; dropping it (however the session ends) gives its slot
-//! back, so a panicking or cancelled session task cannot leak one.
+//! A holder of a slot keeps a [`SlotPermit`]; dropping it (however the holder ends) gives the
+//! slot back, so a panicking or cancelled task cannot leak one.
 
 use std::collections::HashMap;
 use std::net::IpAddr;
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
-/// Why a session was not admitted.
+/// Why a slot was not given.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Refusal {
-    /// The server holds its maximum number of sessions.
+    /// Every slot of the server is taken.
     ServerFull,
-    /// The address holds its maximum number of sessions.
+    /// The address holds its maximum number of slots.
     PerAddress,
 }
 
 #[derive(Debug, Default)]
 struct Counts {
-    /// Sessions open in all.
+    /// Slots taken in all.
     total: u32,
-    /// Sessions open per address (entries at zero are removed).
+    /// Slots taken per address (entries at zero are removed).
     per_ip: HashMap<IpAddr, u32>,
 }
 
-/// Counts open sessions against the limits.
+/// Counts slots (sessions, or connections) against a total and a per-address limit.
 #[derive(Debug)]
-pub struct SessionLimits {
-    /// Most sessions at once.
+pub struct SlotLimits {
+    /// Most slots at once.
     max_total: u32,
-    /// Most sessions at once per address.
+    /// Most slots at once per address.
     max_per_ip: u32,
     /// The counts, shared with the permits.
     counts: Arc<Mutex<Counts>>,
 }
 
-/// One admitted session's slot.
+/// One slot, given back when dropped.
 #[derive(Debug)]
-pub struct SessionPermit {
+pub struct SlotPermit {
     /// The counts to give the slot back to.
     counts: Arc<Mutex<Counts>>,
-    /// The session's address.
+    /// The holder's address.
     ip: IpAddr,
 }
 
-impl SessionLimits {
-    /// Limits of `max_total` sessions and `max_per_ip` per address.
-    pub fn new(max_total: u32, max_per_ip: u32) -> SessionLimits {
-        SessionLimits {
+impl SlotLimits {
+    /// Limits of `max_total` slots and `max_per_ip` per address.
+    pub fn new(max_total: u32, max_per_ip: u32) -> SlotLimits {
+        SlotLimits {
             max_total,
             max_per_ip,
             counts: Arc::default(),
         }
     }
 
-    /// Admits a session from `ip`, or says why not.
-    pub fn admit(&self, ip: IpAddr) -> Result<SessionPermit, Refusal> {
+    /// Gives `ip` a slot, or says why not.
+    pub fn admit(&self, ip: IpAddr) -> Result<SlotPermit, Refusal> {
         let mut c = self.counts.lock().unwrap_or_else(|e| e.into_inner());
         if c.total >= self.max_total {
             return Err(Refusal::ServerFull);
@@ -67,19 +68,24 @@ impl SessionLimits {
         }
         *n += 1;
         c.total += 1;
-        Ok(SessionPermit {
+        Ok(SlotPermit {
             counts: self.counts.clone(),
             ip,
         })
     }
 
-    /// Sessions open now.
+    /// Slots taken now.
     pub fn open(&self) -> u32 {
         self.counts.lock().unwrap_or_else(|e| e.into_inner()).total
     }
+
+    /// The total limit.
+    pub fn max_total(&self) -> u32 {
+        self.max_total
+    }
 }
 
-impl Drop for SessionPermit {
+impl Drop for SlotPermit {
     fn drop(&mut self) {
         let mut c = self.counts.lock().unwrap_or_else(|e| e.into_inner());
         c.total = c.total.saturating_sub(1);
@@ -92,9 +98,13 @@ impl Drop for SessionPermit {
     }
 }
 
-/// A token bucket per address: `rate` connections per second, bursts of `2 * rate`.
+/// A token bucket per address: `rate` tokens a second up to `burst`.
+///
+/// A taker of `cost` tokens goes ahead when the bucket holds `min(cost, burst)` and then owes
+/// the rest: the bucket may go negative, and the address waits until it has paid. So one large
+/// piece of work (a resume of a big cut) is admitted at once, and the next waits in proportion.
 #[derive(Debug)]
-pub struct ConnectionRate {
+pub struct IpBuckets {
     /// Tokens added per second.
     rate: f64,
     /// Bucket size.
@@ -110,18 +120,23 @@ type Buckets = HashMap<IpAddr, (f64, Instant)>;
 /// The smallest table size that triggers forgetting full buckets.
 const PRUNE_AT: usize = 4096;
 
-impl ConnectionRate {
-    /// A limiter of `rate` connections per second per address.
-    pub fn new(rate: f64) -> ConnectionRate {
-        ConnectionRate {
+impl IpBuckets {
+    /// Buckets of `burst` tokens refilled at `rate` a second.
+    pub fn new(rate: f64, burst: f64) -> IpBuckets {
+        IpBuckets {
             rate,
-            burst: (2.0 * rate).max(1.0),
+            burst: burst.max(1.0),
             buckets: Mutex::new((HashMap::new(), PRUNE_AT)),
         }
     }
 
-    /// Takes a token for a connection from `ip` at `now`; false when the address is over rate.
-    pub fn allow(&self, ip: IpAddr, now: Instant) -> bool {
+    /// The connection rate: `rate` a second, bursts of twice as many.
+    pub fn connection_rate(rate: f64) -> IpBuckets {
+        IpBuckets::new(rate, 2.0 * rate)
+    }
+
+    /// Takes `cost` tokens for `ip` at `now`, or says how long until it may.
+    pub fn take(&self, ip: IpAddr, now: Instant, cost: f64) -> Result<(), Duration> {
         let mut guard = self.buckets.lock().unwrap_or_else(|e| e.into_inner());
         let (b, prune_at) = &mut *guard;
         if b.len() >= *prune_at {
@@ -130,30 +145,35 @@ impl ConnectionRate {
                 *t + now.saturating_duration_since(*last).as_secs_f64() * rate < burst
             });
             // Many busy addresses: wait for the table to double before the next sweep, so that
-            // sweeps cost O(1) per connection on average instead of one each.
+            // sweeps cost O(1) per taker on average instead of one each.
             *prune_at = (2 * b.len()).max(PRUNE_AT);
         }
         let (tokens, last) = b.entry(ip).or_insert((self.burst, now));
         *tokens = (*tokens + now.saturating_duration_since(*last).as_secs_f64() * self.rate)
             .min(self.burst);
         *last = now;
-        if *tokens >= 1.0 {
-            *tokens -= 1.0;
-            true
+        let need = cost.min(self.burst);
+        if *tokens >= need {
+            *tokens -= cost;
+            Ok(())
         } else {
-            false
+            Err(Duration::from_secs_f64((need - *tokens) / self.rate))
         }
+    }
+
+    /// Takes one token: false when the address is over its rate.
+    pub fn allow(&self, ip: IpAddr, now: Instant) -> bool {
+        self.take(ip, now, 1.0).is_ok()
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::time::Duration;
 
     #[test]
     fn permits_count_and_give_back() {
-        let l = SessionLimits::new(3, 2);
+        let l = SlotLimits::new(3, 2);
         let a: IpAddr = "10.0.0.1".parse().unwrap();
         let b: IpAddr = "10.0.0.2".parse().unwrap();
         let p1 = l.admit(a).unwrap();
@@ -168,7 +188,7 @@ mod tests {
 
     #[test]
     fn rate_allows_a_burst_then_the_rate() {
-        let r = ConnectionRate::new(10.0);
+        let r = IpBuckets::connection_rate(10.0);
         let ip: IpAddr = "10.0.0.1".parse().unwrap();
         let t0 = Instant::now();
         let burst = (0..100).filter(|_| r.allow(ip, t0)).count();
@@ -181,8 +201,24 @@ mod tests {
     }
 
     #[test]
+    fn large_work_goes_ahead_then_is_paid_for() {
+        // 1000 tokens a second, bursts of 2000: a 10,000-token piece goes at once and the
+        // address then waits 10 s (8 s of debt plus 2 s to reach the next piece's burst).
+        let r = IpBuckets::new(1000.0, 2000.0);
+        let ip: IpAddr = "10.0.0.1".parse().unwrap();
+        let t0 = Instant::now();
+        assert!(r.take(ip, t0, 10_000.0).is_ok());
+        let wait = r.take(ip, t0, 10_000.0).unwrap_err();
+        assert!((wait.as_secs_f64() - 10.0).abs() < 1e-6, "{wait:?}");
+        assert!(r.take(ip, t0 + Duration::from_secs(9), 10_000.0).is_err());
+        assert!(r.take(ip, t0 + Duration::from_secs(10), 10_000.0).is_ok());
+        // Small work from another address is not held up.
+        assert!(r.take("10.0.0.2".parse().unwrap(), t0, 500.0).is_ok());
+    }
+
+    #[test]
     fn full_buckets_are_forgotten_and_busy_ones_kept() {
-        let r = ConnectionRate::new(1.0);
+        let r = IpBuckets::connection_rate(1.0);
         let t0 = Instant::now();
         for i in 0..PRUNE_AT as u32 {
             assert!(r.allow(IpAddr::from(i.to_be_bytes()), t0));

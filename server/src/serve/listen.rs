@@ -1,13 +1,21 @@
-//! The accept loop: per-IP connection rate, HTTP/1.1 with a header-read timeout (against
-//! slowloris) and WebSocket upgrades, and the graceful drain.
+//! The accept loop: per-IP connection rate, connection limits in all and per IP, HTTP/1.1
+//! with a header-read timeout (against slowloris; hyper also starts it while a kept-alive
+//! connection idles) and WebSocket upgrades, and the graceful drain.
 //!
-//! axum's own `serve` sets neither a header timeout nor a connection-rate limit, so
-//! connections are served here with hyper directly. Each request carries the peer's address as
-//! axum's `ConnectInfo`.
+//! axum's own `serve` sets neither a header timeout nor connection limits, so connections are
+//! served here with hyper directly. Each request carries the peer's address as axum's
+//! `ConnectInfo`, and its connection's slot as a [`ConnSlot`], which a WebSocket session
+//! keeps for as long as it runs.
+//!
+//! **At the limit.** A connection over the limits is still read, briefly and one request only,
+//! by a small router that answers `/healthz` and `/readyz` as usual and everything else with
+//! 503 (server full) or 429 (address full); a few such connections at a time, beyond which
+//! they get the refusal unread. The limit itself is kept below the process's open-file limit
+//! (raised to its hard maximum at start), so that `accept` never runs out of descriptors.
 
-use super::limits::ConnectionRate;
+use super::limits::{IpBuckets, Refusal, SlotPermit};
 use super::metrics::ErrorKind;
-use super::router::app;
+use super::router::{app, overflow_app};
 use super::state::AppState;
 use axum::extract::ConnectInfo;
 use hyper::body::Incoming;
@@ -24,6 +32,47 @@ use tower::ServiceExt;
 
 /// What a connection over its rate is told before it is closed.
 const TOO_MANY: &[u8] = b"HTTP/1.1 429 Too Many Requests\r\ncontent-type: application/json\r\nconnection: close\r\ncontent-length: 67\r\n\r\n{\"error\":\"too many connections from your address; retry after 1 s\"}";
+
+/// What a connection over the connection limit is told, unread, when even the small router's
+/// few places are taken.
+const FULL: &[u8] = b"HTTP/1.1 503 Service Unavailable\r\ncontent-type: application/json\r\nconnection: close\r\ncontent-length: 64\r\n\r\n{\"error\":\"the server holds its maximum of connections; retry later\"}";
+
+/// Connections over the limit read at once by the small router.
+const OVERFLOW_READERS: usize = 32;
+
+/// How long the small router waits for an over-limit connection's request.
+const OVERFLOW_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// Descriptors kept back from the connection limit: the store, the listener, logs, the
+/// blocking pool's files, and the over-limit connections being answered.
+const RESERVED_FDS: u64 = 64 + OVERFLOW_READERS as u64;
+
+/// A connection's slot, held by the connection and by a WebSocket session upgraded from it.
+#[derive(Clone, Debug)]
+pub struct ConnSlot(#[allow(dead_code)] Arc<SlotPermit>);
+
+/// Raises the open-file limit to its hard maximum and returns how many connections fit
+/// under it, at most `wanted`.
+pub fn fit_connections(wanted: u32) -> u32 {
+    use nix::sys::resource::{Resource, getrlimit, setrlimit};
+    let Ok((soft, hard)) = getrlimit(Resource::RLIMIT_NOFILE) else {
+        return wanted;
+    };
+    let soft = if soft < hard && setrlimit(Resource::RLIMIT_NOFILE, hard, hard).is_ok() {
+        hard
+    } else {
+        soft
+    };
+    let fit = soft.saturating_sub(RESERVED_FDS).max(1);
+    if fit < u64::from(wanted) {
+        tracing::warn!(
+            "the open-file limit ({soft}) allows {fit} connections, not {wanted}; raise `ulimit -n` for more"
+        );
+        fit as u32
+    } else {
+        wanted
+    }
+}
 
 /// Counts live HTTP connections, so that the drain can wait for them.
 #[derive(Clone, Default)]
@@ -45,9 +94,30 @@ impl Drop for LiveGuard {
     }
 }
 
-async fn refuse(mut tcp: TcpStream) {
-    let _ = tokio::time::timeout(Duration::from_secs(1), tcp.write_all(TOO_MANY)).await;
+async fn refuse(mut tcp: TcpStream, answer: &'static [u8]) {
+    let _ = tokio::time::timeout(Duration::from_secs(1), tcp.write_all(answer)).await;
     let _ = tcp.shutdown().await;
+}
+
+/// Answers one request of a connection over the limit with the small router, then closes it.
+async fn serve_overflow(
+    tcp: TcpStream,
+    peer: SocketAddr,
+    state: Arc<AppState>,
+    why: Refusal,
+    _guard: LiveGuard,
+) {
+    let router = overflow_app(state, why);
+    let svc = hyper::service::service_fn(move |mut req: hyper::Request<Incoming>| {
+        req.extensions_mut().insert(ConnectInfo::<SocketAddr>(peer));
+        router.clone().oneshot(req)
+    });
+    let conn = http1::Builder::new()
+        .timer(TokioTimer::new())
+        .header_read_timeout(OVERFLOW_TIMEOUT)
+        .keep_alive(false)
+        .serve_connection(TokioIo::new(tcp), svc);
+    let _ = tokio::time::timeout(OVERFLOW_TIMEOUT, conn).await;
 }
 
 /// Serves connections from `listener` until `shutdown` completes, then drains: sessions are
@@ -60,8 +130,9 @@ pub async fn serve(
     shutdown: impl std::future::Future<Output = ()>,
 ) {
     let router = app(state.clone());
-    let rate = ConnectionRate::new(state.limits.conn_rate_per_ip);
+    let rate = IpBuckets::connection_rate(state.limits.conn_rate_per_ip);
     let live = Live::default();
+    let overflow = Live::default();
     let mut stop = draining.subscribe();
     tokio::pin!(shutdown);
     loop {
@@ -80,13 +151,29 @@ pub async fn serve(
         if !rate.allow(peer.ip(), Instant::now()) {
             state.metrics.error(ErrorKind::RateLimited);
             tracing::debug!(%peer, "connection refused: over the per-address rate");
-            tokio::spawn(refuse(tcp));
+            tokio::spawn(refuse(tcp, TOO_MANY));
             continue;
         }
         let _ = tcp.set_nodelay(true);
+        let slot = match state.connections.admit(peer.ip()) {
+            Ok(p) => ConnSlot(Arc::new(p)),
+            Err(why) => {
+                state.metrics.error(ErrorKind::ConnectionLimit);
+                tracing::debug!(%peer, "connection over the limit: {why:?}");
+                if overflow.0.load(Relaxed) >= OVERFLOW_READERS {
+                    tokio::spawn(refuse(tcp, FULL));
+                } else {
+                    let guard = overflow.enter();
+                    tokio::spawn(serve_overflow(tcp, peer, state.clone(), why, guard));
+                }
+                continue;
+            }
+        };
         let router = router.clone();
+        let conn_slot = slot.clone();
         let svc = hyper::service::service_fn(move |mut req: hyper::Request<Incoming>| {
             req.extensions_mut().insert(ConnectInfo::<SocketAddr>(peer));
+            req.extensions_mut().insert(conn_slot.clone());
             router.clone().oneshot(req)
         });
         let conn = http1::Builder::new()
@@ -99,6 +186,7 @@ pub async fn serve(
         let st = state.clone();
         tokio::spawn(async move {
             let _guard = guard;
+            let _slot = slot;
             tokio::pin!(conn);
             let result = tokio::select! {
                 r = conn.as_mut() => r,

@@ -20,13 +20,19 @@ pub enum ErrorKind {
     RateLimited,
     /// A connection was dropped for sending its headers too slowly, or a connection error.
     Connection,
+    /// A connection was refused: the server's or its address's connection limit was reached.
+    ConnectionLimit,
+    /// A request body did not arrive within the body timeout.
+    BodyTimeout,
 }
 
 impl ErrorKind {
-    const ALL: [ErrorKind; 3] = [
+    const ALL: [ErrorKind; 5] = [
         ErrorKind::BadRequest,
         ErrorKind::RateLimited,
         ErrorKind::Connection,
+        ErrorKind::ConnectionLimit,
+        ErrorKind::BodyTimeout,
     ];
 
     fn name(self) -> &'static str {
@@ -34,6 +40,8 @@ impl ErrorKind {
             ErrorKind::BadRequest => "bad_request",
             ErrorKind::RateLimited => "rate_limited",
             ErrorKind::Connection => "connection",
+            ErrorKind::ConnectionLimit => "connection_limit",
+            ErrorKind::BodyTimeout => "body_timeout",
         }
     }
 }
@@ -62,7 +70,7 @@ pub struct Metrics {
     /// Sessions closed, per [`CloseReason`] (in [`CloseReason::ALL`] order).
     closes: [AtomicU64; CloseReason::ALL.len()],
     /// Other errors per [`ErrorKind`].
-    errors: [AtomicU64; 3],
+    errors: [AtomicU64; ErrorKind::ALL.len()],
 }
 
 impl Metrics {

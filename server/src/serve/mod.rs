@@ -77,9 +77,11 @@ impl Server {
                 source,
             })?;
         let (draining, rx) = watch::channel(false);
+        let mut limits = config.limits.clone();
+        limits.max_connections = listen::fit_connections(limits.max_connections);
         Ok(Server {
             listener,
-            state: Arc::new(AppState::new(config.limits.clone(), rx)),
+            state: Arc::new(AppState::new(limits, rx)),
             draining,
             config,
         })

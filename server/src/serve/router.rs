@@ -1,6 +1,8 @@
 //! The router: every route of the server over the shared state, built in one place so that
 //! tests can call it without a socket.
 
+use super::http::ApiError;
+use super::limits::Refusal;
 use super::state::AppState;
 use super::{http, tiles, ws};
 use axum::Router;
@@ -30,5 +32,25 @@ pub fn app(state: Arc<AppState>) -> Router {
         .layer(DefaultBodyLimit::max(
             state.limits.max_message_bytes as usize,
         ))
+        .with_state(state)
+}
+
+/// The small router for a connection over the connection limits: health and readiness as
+/// usual, and the refusal for everything else.
+pub fn overflow_app(state: Arc<AppState>, why: Refusal) -> Router {
+    let refusal = move || async move {
+        match why {
+            Refusal::ServerFull => ApiError::Unavailable(
+                "the server holds its maximum of connections; retry later".into(),
+            ),
+            Refusal::PerAddress => ApiError::TooMany(
+                "your address holds its maximum of connections; close some or retry later".into(),
+            ),
+        }
+    };
+    Router::new()
+        .route("/healthz", get(http::healthz))
+        .route("/readyz", get(http::readyz))
+        .fallback(refusal)
         .with_state(state)
 }

@@ -3,8 +3,14 @@
 //!
 //! Cache entries are named after what they were built from (the DEM spec, the file's size and
 //! modification time, the store format version), so a changed DEM is built again and an
-//! unchanged one is not. Builds go through a temporary file and a rename, so two servers
-//! starting at once never map a half-written store.
+//! unchanged one is not. The key is also recorded inside the store, and an entry whose
+//! recorded key differs (another store copied over its name) is built again, not served.
+//! Builds go through a temporary file and a rename, so two servers starting at once never map
+//! a half-written store.
+//!
+//! Whatever the source, the server maps a private copy of the store
+//! ([`Store::open_private`]), made in the cache folder: the file it was given may be
+//! replaced, truncated or deleted while it serves.
 
 use super::config::TerrainSource;
 use crate::dem::{self, LoadOptions};
@@ -43,7 +49,8 @@ pub enum SourceError {
     },
 }
 
-fn cache_key(spec: &str, opts: &LoadOptions) -> u64 {
+/// The key of a cache entry: what the DEM was and how it is read.
+pub fn cache_key(spec: &str, opts: &LoadOptions) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
     spec.hash(&mut h);
     // What changes the heights or the spacing changes the store.
@@ -89,11 +96,28 @@ pub fn check_exists(source: &TerrainSource) -> Result<(), SourceError> {
     }
 }
 
-fn open(path: &Path) -> Result<Store, SourceError> {
-    Store::open(path).map_err(|source| SourceError::Store {
+/// Opens a private copy of the store at `path`, made in `scratch`.
+fn open(path: &Path, scratch: &Path) -> Result<Store, SourceError> {
+    Store::open_private(path, scratch).map_err(|source| SourceError::Store {
         path: path.display().to_string(),
         source,
     })
+}
+
+/// Opens the cache entry at `path` if it was built for `key`.
+fn open_cached(path: &Path, scratch: &Path, key: &str) -> Result<Store, String> {
+    let store = open(path, scratch).map_err(|e| {
+        let why = std::error::Error::source(&e).map(|s| s.to_string());
+        format!("{e}: {}", why.unwrap_or_default())
+    })?;
+    match store.meta().cache_key.as_deref() {
+        Some(k) if k == key => Ok(store),
+        other => Err(format!(
+            "it holds a store built for {} (from {:?}), not for this DEM ({key})",
+            other.unwrap_or("no cache key"),
+            store.meta().source
+        )),
+    }
 }
 
 /// Opens the terrain, building and caching it first if needed. Blocking: call it off the
@@ -101,24 +125,19 @@ fn open(path: &Path) -> Result<Store, SourceError> {
 pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, SourceError> {
     let defaults = LoadOptions::default();
     let (spec, opts) = match source {
-        TerrainSource::Store(p) => return open(p),
+        TerrainSource::Store(p) => return open(p, cache_dir),
         TerrainSource::Embedded => (dem::EMBEDDED_SPEC, &defaults),
         TerrainSource::Dem(s, o) => (s.as_str(), o),
     };
     let path = cached_store_path(cache_dir, spec, opts);
+    let key = format!("{:016x}", cache_key(spec, opts));
     if path.exists() {
-        match open(&path) {
+        match open_cached(&path, cache_dir, &key) {
             Ok(s) => {
                 tracing::info!("using cached store {}", path.display());
                 return Ok(s);
             }
-            Err(e) => {
-                let why = std::error::Error::source(&e).map(|s| s.to_string());
-                tracing::warn!(
-                    "rebuilding the cached store: {e}: {}",
-                    why.unwrap_or_default()
-                );
-            }
+            Err(why) => tracing::warn!("rebuilding the cached store {}: {why}", path.display()),
         }
     }
     std::fs::create_dir_all(cache_dir).map_err(|source| SourceError::Cache {
@@ -135,13 +154,11 @@ pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, S
         d.height,
         path.display()
     );
-    preprocess::build_store(&d, &path, None, crate::store::DEFAULT_TILE_SIZE, true).map_err(
-        |source| SourceError::Store {
-            path: path.display().to_string(),
-            source,
-        },
-    )?;
-    open(&path)
+    preprocess::build_cached_store(&d, &path, &key).map_err(|source| SourceError::Store {
+        path: path.display().to_string(),
+        source,
+    })?;
+    open(&path, cache_dir)
 }
 
 #[cfg(test)]
@@ -169,6 +186,42 @@ mod tests {
         std::fs::write(&path, b"not a store").unwrap();
         let s = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
         assert_eq!(s.geometry().shape.width(), 257);
+    }
+
+    #[test]
+    fn a_foreign_store_over_a_cache_entry_is_rebuilt_not_served() {
+        // Issue 12: a valid store of another terrain, copied over the cached file's name.
+        let dir = tempfile::tempdir().unwrap();
+        let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC, &LoadOptions::default());
+        let other = dem::load("synthetic:65:3", &LoadOptions::default()).unwrap();
+        preprocess::build_store(&other, &path, None, 16, false).unwrap();
+        let foreign_id = Store::open(&path).unwrap().terrain_id();
+        let s = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
+        assert_ne!(s.terrain_id(), foreign_id);
+        assert_eq!(s.geometry().shape.width(), 257);
+    }
+
+    #[test]
+    fn the_served_store_is_a_private_copy() {
+        // Issue 12: truncating or overwriting the store file under the server changes nothing
+        // it serves.
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("s.relief");
+        let d = dem::load("synthetic:129:5", &LoadOptions::default()).unwrap();
+        preprocess::build_store(&d, &file, None, 16, false).unwrap();
+        let s = open_terrain(&TerrainSource::Store(file.clone()), dir.path()).unwrap();
+        let before: Vec<i32> = (0..129).map(|c| s.sample_z(c, 64)).collect();
+        let len = std::fs::metadata(&file).unwrap().len();
+        std::fs::OpenOptions::new()
+            .write(true)
+            .open(&file)
+            .unwrap()
+            .set_len(len / 3)
+            .unwrap();
+        let after: Vec<i32> = (0..129).map(|c| s.sample_z(c, 64)).collect();
+        assert_eq!(before, after);
+        std::fs::write(&file, vec![0x7f; len as usize]).unwrap();
+        assert_eq!(s.sample_z(5, 64), before[5]);
     }
 
     #[test]

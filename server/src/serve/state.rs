@@ -1,7 +1,7 @@
 //! The state every handler shares.
 
 use super::config::Limits;
-use super::limits::SessionLimits;
+use super::limits::{IpBuckets, SlotLimits};
 use super::metrics::Metrics;
 use crate::store::Store;
 use relief_proto::msg::TerrainInfo;
@@ -91,7 +91,14 @@ pub struct AppState {
     /// Counters for `/metrics`.
     pub metrics: Metrics,
     /// Session admission.
-    pub sessions: SessionLimits,
+    pub sessions: SlotLimits,
+    /// Connection admission (sessions are connections too).
+    pub connections: SlotLimits,
+    /// Resume work per address, in interior nodes of the resumed cuts.
+    pub resume_work: IpBuckets,
+    /// Sessions being opened at once (a resume is rebuilt off the async runtime): a flood of
+    /// openings waits its turn instead of taking every core.
+    pub openings: tokio::sync::Semaphore,
     /// Open sessions by id, for `GET /v1/sessions`.
     pub registry: Mutex<HashMap<u64, Arc<SessionStats>>>,
     /// The next session id.
@@ -108,7 +115,13 @@ impl AppState {
     pub fn new(limits: Limits, draining: watch::Receiver<bool>) -> AppState {
         AppState {
             terrain: OnceLock::new(),
-            sessions: SessionLimits::new(limits.max_sessions, limits.max_sessions_per_ip),
+            sessions: SlotLimits::new(limits.max_sessions, limits.max_sessions_per_ip),
+            connections: SlotLimits::new(limits.max_connections, limits.max_connections_per_ip),
+            resume_work: IpBuckets::new(
+                limits.resume_nodes_per_s_per_ip,
+                2.0 * limits.resume_nodes_per_s_per_ip,
+            ),
+            openings: tokio::sync::Semaphore::new(limits.max_openings as usize),
             limits,
             metrics: Metrics::default(),
             registry: Mutex::default(),
@@ -142,7 +155,7 @@ impl AppState {
             acked: AtomicU64::new(0),
             bytes_out: AtomicU64::new(0),
             active_nodes: AtomicU64::new(0),
-            memory_bytes: AtomicU64::new(0),
+            memory_bytes: AtomicU64::new(super::session::SOCKET_BYTES),
         });
         self.registry
             .lock()

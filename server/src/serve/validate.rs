@@ -46,6 +46,14 @@ pub fn params(lens: &WireLens, tau: f32, budget: Option<u32>) -> Result<(), Stri
     Ok(())
 }
 
+/// Why a cut past the server's limit of interior nodes is refused: the same words for a
+/// session (closed with `cut_limit`) and the one-shot (400).
+pub fn cut_limit(max_nodes: usize) -> String {
+    format!(
+        "the cut reached the server's limit of {max_nodes} interior nodes; raise tau or shrink the viewport"
+    )
+}
+
 /// Checks a camera against the terrain: finite, pitch inside (-90, 90) degrees, and within
 /// [`CAMERA_REACH_M`] of the terrain.
 pub fn camera(c: &WireCamera, t: &TerrainInfo) -> Result<Camera, String> {

@@ -3,8 +3,10 @@
 //! browser's WebSocket API cannot do with an HTTP status.
 
 use super::limits::Refusal;
+use super::listen::ConnSlot;
 use super::session;
 use super::state::AppState;
+use axum::Extension;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{ConnectInfo, State};
 use axum::response::Response;
@@ -16,6 +18,7 @@ use std::sync::Arc;
 pub async fn upgrade(
     State(state): State<Arc<AppState>>,
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
+    slot: Option<Extension<ConnSlot>>,
     ws: WebSocketUpgrade,
 ) -> Response {
     let max = state.limits.max_message_bytes as usize;
@@ -24,7 +27,11 @@ pub async fn upgrade(
     ws.max_message_size(max)
         .max_frame_size(max)
         .read_buffer_size(4096)
-        .on_upgrade(move |socket| admit(socket, state, peer))
+        .on_upgrade(move |socket| async move {
+            // The connection's slot stays taken for as long as the session runs.
+            let _slot = slot;
+            admit(socket, state, peer).await
+        })
 }
 
 async fn admit(mut socket: WebSocket, state: Arc<AppState>, peer: SocketAddr) {

@@ -6,8 +6,9 @@ use std::fs::File;
 
 /// Maps `file` read-only.
 pub fn map(file: &File) -> std::io::Result<Mmap> {
-    // SAFETY: the map is read-only and private to this process. Relief never writes a store in
-    // place: `build` writes a new file and renames it over the old one, so a mapped store is not
-    // truncated under us by Relief itself. Every byte is checksummed at open, before any read.
+    // SAFETY: the map is read-only. Relief never writes a store in place: `build` writes a new
+    // file and renames it over the old one. The server maps a private, unnamed copy that no
+    // other process can open by name (see `private`), so nothing truncates or changes it under
+    // us. Every byte is checksummed at open, before any read.
     unsafe { Mmap::map(file) }
 }

@@ -5,13 +5,16 @@
 //! - [`tiles`]: heights to the tile pyramid (meshes, crack patches, errors, bounds).
 //! - [`format`]: the versioned, checksummed file layout.
 //! - [`mmap`]: the one unsafe call, mapping the file.
+//! - [`private`]: the server's private copy of a store, which nothing outside can change.
 //!
-//! [`write_store`] builds and writes a store; [`Store::open`] maps and checks one.
+//! [`write_store`] builds and writes a store; [`Store::open`] maps and checks one, and
+//! [`Store::open_private`] maps a private copy.
 
 pub mod build;
 pub mod format;
 pub mod layout;
 mod mmap;
+pub mod private;
 pub mod tiles;
 
 use format::{HEADER_LEN, Header, META, NODES, TILE_DATA, TILES, VOIDS};
@@ -60,6 +63,9 @@ pub enum StoreError {
     /// A checksum or a consistency check failed.
     #[error("store is corrupt: {0}")]
     Corrupt(String),
+    /// The input cannot be stored as asked; the message says why and what to change.
+    #[error("{0}")]
+    Input(String),
     /// This machine cannot read the format in place.
     #[error("stores are little-endian; this machine is not")]
     Endianness,
@@ -78,6 +84,11 @@ pub struct StoreMeta {
     pub height_max: f64,
     /// Samples that were voids in the source and were filled.
     pub void_count: u64,
+    /// For a store the server built into its cache: the key of what it was built from (the
+    /// DEM, how it was read, the format version), checked when the cache entry is opened so
+    /// that a store copied over the entry's name is not served as that DEM.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cache_key: Option<String>,
 }
 
 /// The input to [`write_store`].
@@ -240,8 +251,30 @@ pub struct TileBounds {
 }
 
 impl Store {
-    /// Maps `path` and checks it completely (header, section sizes, checksums).
+    /// Maps `path` and checks it completely (header, section sizes, checksums). The file must
+    /// not change while the store is open (see [`Store::open_private`] for a server).
     pub fn open(path: &Path) -> Result<Store, StoreError> {
+        let io = |source| StoreError::Io {
+            path: path.display().to_string(),
+            source,
+        };
+        Store::from_file(&File::open(path).map_err(io)?, path)
+    }
+
+    /// Copies `path` into an unnamed, read-only file in `scratch` and maps the copy, checked
+    /// completely: whatever later happens to `path` (truncated, overwritten, deleted) cannot
+    /// reach the open store. See [`private`].
+    pub fn open_private(path: &Path, scratch: &Path) -> Result<Store, StoreError> {
+        let io = |source| StoreError::Io {
+            path: path.display().to_string(),
+            source,
+        };
+        let copy = private::copy(path, scratch).map_err(io)?;
+        Store::from_file(&copy, path)
+    }
+
+    /// Maps `file` (read from `path`) and checks it completely.
+    fn from_file(file: &File, path: &Path) -> Result<Store, StoreError> {
         if cfg!(target_endian = "big") {
             return Err(StoreError::Endianness);
         }
@@ -249,8 +282,7 @@ impl Store {
             path: path.display().to_string(),
             source,
         };
-        let file = File::open(path).map_err(io)?;
-        let map = mmap::map(&file).map_err(io)?;
+        let map = mmap::map(file).map_err(io)?;
         let header = Header::parse(&map[..HEADER_LEN.min(map.len())], map.len() as u64)?;
         let geom = geometry(
             header.width,

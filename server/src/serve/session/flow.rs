@@ -114,15 +114,12 @@ where
             state.metrics.deltas_total.fetch_add(1, Relaxed);
             stats.deltas.fetch_add(1, Relaxed);
             stats.active_nodes.store(lod.active_count(), Relaxed);
-            stats.memory_bytes.store(lod.memory_bytes() as u64, Relaxed);
+            stats
+                .memory_bytes
+                .store(super::SOCKET_BYTES + lod.memory_bytes() as u64, Relaxed);
             let max_nodes = state.limits.max_cut_nodes as usize;
             if lod.over_limit(max_nodes) {
-                return fail(
-                    CloseReason::BadParams,
-                    format!(
-                        "the cut reached the server's limit of {max_nodes} interior nodes; raise tau or shrink the viewport"
-                    ),
-                );
+                return fail(CloseReason::CutLimit, validate::cut_limit(max_nodes));
             }
             continue;
         }

@@ -20,16 +20,33 @@ pub(super) fn fail<T>(
     Err((reason, detail.into()))
 }
 
-/// Whether a socket error is the codec's message-size limit.
-fn too_large(e: &(dyn StdError + 'static)) -> bool {
+/// The close for a socket error the client caused: a message over the size limit (1009), a
+/// text frame that is not UTF-8 (1007), or a frame that breaks RFC 6455 (1002). `None` for a
+/// connection that is simply gone, which nobody is left to tell.
+fn client_fault(e: &(dyn StdError + 'static), state: &AppState) -> Option<(CloseReason, String)> {
+    use tungstenite::Error as W;
     let mut cur = Some(e);
     while let Some(err) = cur {
-        if let Some(t) = err.downcast_ref::<tungstenite::Error>() {
-            return matches!(t, tungstenite::Error::Capacity(_));
+        if let Some(t) = err.downcast_ref::<W>() {
+            return match t {
+                W::Capacity(_) => Some((
+                    CloseReason::TooLarge,
+                    format!(
+                        "message exceeds the limit of {} bytes",
+                        state.limits.max_message_bytes
+                    ),
+                )),
+                W::Utf8(_) => Some((
+                    CloseReason::Malformed,
+                    "a text frame is not valid UTF-8".into(),
+                )),
+                W::Protocol(p) => Some((CloseReason::Protocol, format!("{p}"))),
+                _ => None,
+            };
         }
         cur = err.source();
     }
-    false
+    None
 }
 
 /// Receives the next message within the idle timeout. `None`: the client closed.
@@ -54,16 +71,12 @@ where
                 );
             }
             Ok(None) => return Ok(None),
-            Ok(Some(Err(e))) if too_large(&e) => {
-                return fail(
-                    CloseReason::TooLarge,
-                    format!(
-                        "message exceeds the limit of {} bytes",
-                        state.limits.max_message_bytes
-                    ),
-                );
+            Ok(Some(Err(e))) => {
+                return match client_fault(&e, state) {
+                    Some(why) => Err(why),
+                    None => Ok(None),
+                };
             }
-            Ok(Some(Err(_))) => return Ok(None),
             Ok(Some(Ok(m))) => m,
         };
         match msg {

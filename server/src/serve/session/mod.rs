@@ -20,7 +20,7 @@ mod io;
 #[cfg(test)]
 mod tests;
 
-use super::limits::SessionPermit;
+use super::limits::SlotPermit;
 use super::state::{AppState, SessionStats, Terrain};
 use super::stream::Stream as LodStream;
 use super::validate;
@@ -41,7 +41,7 @@ use std::sync::atomic::Ordering::Relaxed;
 use std::time::Duration;
 
 /// Runs a session to its end and closes the socket with the reason.
-pub async fn run<S, E>(mut socket: S, state: Arc<AppState>, peer: SocketAddr, permit: SessionPermit)
+pub async fn run<S, E>(mut socket: S, state: Arc<AppState>, peer: SocketAddr, permit: SlotPermit)
 where
     S: Stream<Item = Result<Message, E>> + Sink<Message> + Unpin + Send,
     E: StdError + Send + Sync + 'static,
@@ -75,10 +75,44 @@ struct Opening {
     budget: Option<u32>,
 }
 
+/// Longest a resume waits for its address's resume work to be paid for; past it the session
+/// is refused (and the client retries later).
+const MAX_RESUME_WAIT: Duration = Duration::from_secs(10);
+
+/// Memory a session holds before its LOD state: the WebSocket read buffer (see `ws.rs`).
+pub const SOCKET_BYTES: u64 = 4096;
+
+/// Paces resumes per address: a resume of `nodes` interior nodes goes ahead once the address
+/// has paid for its earlier ones, at the configured rate.
+async fn pace_resume(state: &AppState, peer: SocketAddr, nodes: u64) -> Ended {
+    loop {
+        let wait = match state
+            .resume_work
+            .take(peer.ip(), std::time::Instant::now(), nodes as f64)
+        {
+            Ok(()) => return Ok(()),
+            Err(wait) => wait,
+        };
+        if wait > MAX_RESUME_WAIT {
+            return fail(
+                CloseReason::TooManyFromAddress,
+                format!(
+                    "{} resumed more than {:.0} interior nodes a second; retry in {:.0} s",
+                    peer.ip(),
+                    state.limits.resume_nodes_per_s_per_ip,
+                    wait.as_secs_f64().ceil()
+                ),
+            );
+        }
+        tokio::time::sleep(wait).await;
+    }
+}
+
 async fn open(
     hello: Hello,
     terrain: &Arc<Terrain>,
     state: &AppState,
+    stats: &SessionStats,
 ) -> Result<(Opening, bool), (CloseReason, String)> {
     if hello.version != PROTOCOL_VERSION {
         return fail(
@@ -102,6 +136,25 @@ async fn open(
             ),
         );
     }
+    if let Some(r) = &hello.resume {
+        // Accounted from the start: the snapshot, and the cut it becomes (under a byte per
+        // interior node, twice while the first update reads the copy it resumed from).
+        let nodes: u64 = r
+            .snapshot
+            .bits
+            .iter()
+            .map(|b| u64::from(b.count_ones()))
+            .sum();
+        let bytes = SOCKET_BYTES + r.snapshot.bits.len() as u64 + 2 * nodes;
+        stats.memory_bytes.store(bytes, Relaxed);
+        pace_resume(state, stats.peer, nodes).await?;
+    }
+    // Openings take turns: a flood of large resumes cannot take every core.
+    let _turn = state
+        .openings
+        .acquire()
+        .await
+        .map_err(|_| (CloseReason::Internal, "the server is stopping".to_string()))?;
     let t = terrain.clone();
     let max_nodes = state.limits.max_cut_nodes as usize;
     let resumed = hello.resume.is_some();
@@ -176,7 +229,10 @@ where
         Some(_) => return fail(CloseReason::Protocol, "the first message must be a hello"),
     };
     let tiles = matches!(hello.kind, StreamKind::Tiles(_));
-    let (Opening { mut lod, budget }, resumed) = open(hello, &terrain, state).await?;
+    let (Opening { mut lod, budget }, resumed) = open(hello, &terrain, state, stats).await?;
+    stats
+        .memory_bytes
+        .store(SOCKET_BYTES + lod.memory_bytes() as u64, Relaxed);
     state.metrics.sessions_total.fetch_add(1, Relaxed);
     if resumed {
         state.metrics.resumes_total.fetch_add(1, Relaxed);

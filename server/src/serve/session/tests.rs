@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::serve::config::Limits;
-use crate::serve::limits::SessionLimits;
+use crate::serve::limits::SlotLimits;
 use relief_proto::codec;
 use std::pin::Pin;
 use std::task::{Context, Poll};
@@ -76,7 +76,7 @@ async fn poses_coalesce_while_the_window_is_full_and_silence_times_out() {
     let (state, _draining) = state(dir.path(), limits);
     let (to_server, rx) = mpsc::unbounded_channel();
     let (tx, mut from_server) = mpsc::unbounded_channel();
-    let permit = SessionLimits::new(1, 1)
+    let permit = SlotLimits::new(1, 1)
         .admit("127.0.0.1".parse().unwrap())
         .unwrap();
     let peer = "127.0.0.1:1".parse().unwrap();
