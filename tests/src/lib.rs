@@ -1,6 +1,12 @@
 //! Helpers for Relief's end-to-end tests (the tests themselves are in `tests/`): a store built
 //! from the committed Fuji crop, the real server started in process or as a child process on
 //! 127.0.0.1, camera paths over the terrain, and raw protocol frames.
+//!
+//! - [`raw`]: raw sockets for the hostile-input tests.
+//! - [`bystander`]: a session that flies on during an attack and records its latency.
+
+pub mod bystander;
+pub mod raw;
 
 use relief_proto::codec;
 use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, StreamKind};

@@ -1,0 +1,121 @@
+//! Hostile input, issue 12 item 3: WebSocket frames that break RFC 6455. Each closes its
+//! session with 1002 (protocol error) or 1007 (invalid text) and a reason, not a bare
+//! `88 00`, is counted under `relief_errors_total`, and leaves a bystander's latency alone.
+
+use relief_proto::close::CloseReason;
+use relief_server::serve::config::Limits;
+use relief_tests::bystander::{Bystander, assert_kept};
+use relief_tests::raw::{Closed, binary, frame, lo, read_close, ws_open};
+use relief_tests::{TestServer, hello};
+use std::time::Duration;
+use tokio::io::AsyncWriteExt;
+
+/// Opens a session from 127.0.0.2 (hello sent), sends `bytes`, and returns how it closed,
+/// while a bystander from 127.0.0.1 flies; checks the bystander and the error count.
+async fn violation(bytes: Vec<u8>, want: CloseReason, needle: &str) {
+    let server = TestServer::start(Limits::default()).await;
+    let by = Bystander::start(&server.url(), 0).await;
+    let calm = by.measure(Duration::from_millis(400)).await;
+    let (closed, attacked) = by
+        .during(async {
+            let mut tcp = ws_open(lo(2), server.addr).await;
+            tcp.write_all(&binary(&hello())).await.unwrap();
+            tcp.write_all(&bytes).await.unwrap();
+            let c = read_close(&mut tcp).await;
+            tokio::time::sleep(Duration::from_millis(200)).await;
+            c
+        })
+        .await;
+    match &closed {
+        Closed::Code(code, text) => {
+            assert_eq!(*code, want.code(), "{closed:?}");
+            assert!(text.starts_with(want.name()), "{closed:?}");
+            assert!(
+                text.to_lowercase().contains(needle),
+                "{closed:?} lacks {needle:?}"
+            );
+        }
+        other => panic!("closed without a code: {other:?}"),
+    }
+    let m = server.state.metrics.render();
+    let line = format!("relief_errors_total{{kind=\"{}\"}} 1", want.name());
+    assert!(m.contains(&line), "{line} missing:\n{m}");
+    assert_kept(want.name(), calm, attacked);
+    assert_eq!(by.stop().await, 0);
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn invalid_utf8_in_a_text_frame_closes_with_1007() {
+    violation(
+        frame(0x81, true, &[0xc3, 0x28, 0xff]),
+        CloseReason::Malformed,
+        "utf-8",
+    )
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reserved_data_opcode_closes_with_1002() {
+    violation(
+        frame(0x83, true, b"x"),
+        CloseReason::Protocol,
+        "invalid opcode: 3",
+    )
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_reserved_control_opcode_closes_with_1002() {
+    violation(
+        frame(0x8b, true, b""),
+        CloseReason::Protocol,
+        "invalid opcode: 11",
+    )
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn rsv_bits_close_with_1002() {
+    violation(
+        frame(0xc2, true, b"x"),
+        CloseReason::Protocol,
+        "reserved bits",
+    )
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_unmasked_client_frame_closes_with_1002() {
+    violation(frame(0x82, false, b"x"), CloseReason::Protocol, "mask").await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_oversized_control_frame_closes_with_1002() {
+    violation(
+        frame(0x89, true, &[7u8; 126]),
+        CloseReason::Protocol,
+        "control frame too big",
+    )
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_fragmented_control_frame_closes_with_1002() {
+    violation(
+        frame(0x09, true, b"ping"),
+        CloseReason::Protocol,
+        "fragmented control",
+    )
+    .await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_stray_continuation_frame_closes_with_1002() {
+    violation(
+        frame(0x80, true, b"tail"),
+        CloseReason::Protocol,
+        "nothing to continue",
+    )
+    .await;
+}
