@@ -81,10 +81,19 @@ pub enum Closed {
     NoCode,
     /// The connection ended without a close frame.
     NoFrame,
+    /// The server sent the data frames waited for, and no close.
+    Open,
 }
 
 /// Reads server frames until a close frame (binary frames are skipped), within 20 s.
 pub async fn read_close(tcp: &mut TcpStream) -> Closed {
+    read_close_or(tcp, usize::MAX).await
+}
+
+/// Reads server frames until a close frame, or until `data` data frames came ([`Closed::Open`]),
+/// within 20 s.
+pub async fn read_close_or(tcp: &mut TcpStream, data: usize) -> Closed {
+    let mut seen = 0;
     let read = async {
         loop {
             let mut h = [0u8; 2];
@@ -117,6 +126,10 @@ pub async fn read_close(tcp: &mut TcpStream) -> Closed {
                         String::from_utf8_lossy(&payload[2.min(payload.len())..]).into_owned(),
                     ),
                 };
+            }
+            seen += 1;
+            if seen >= data {
+                return Closed::Open;
             }
         }
     };

@@ -79,8 +79,9 @@ pub struct ServeArgs {
     /// Most open connections from one IP address [default: max_sessions_per_ip + 100].
     #[arg(long, env = "RELIEF_MAX_CONNECTIONS_PER_IP")]
     pub max_connections_per_ip: Option<u32>,
-    /// Sessions being opened (a resume rebuilt) at once; more wait their turn
-    /// [default: the number of cores].
+    /// Large resumes (over 100,000 interior nodes) opened at once, each until its first delta
+    /// has examined the whole resumed cut; more wait their turn [default: half the cores, at
+    /// least 1].
     #[arg(long, env = "RELIEF_MAX_OPENINGS")]
     pub max_openings: Option<u32>,
     /// Resume work one IP address may ask for, in interior nodes of resumed cuts per second
@@ -170,7 +171,7 @@ pub struct Limits {
     pub max_connections: u32,
     /// Most open connections per IP address.
     pub max_connections_per_ip: u32,
-    /// Sessions opened at once.
+    /// Large resumes opened at once (each until its first delta).
     pub max_openings: u32,
     /// Interior nodes of resumed cuts per second per IP address.
     pub resume_nodes_per_s_per_ip: f64,
@@ -191,7 +192,8 @@ impl Default for Limits {
             body_timeout: Duration::from_secs(10),
             max_connections: 16_384,
             max_connections_per_ip: 1100,
-            max_openings: std::thread::available_parallelism().map_or(2, |n| n.get() as u32),
+            max_openings: std::thread::available_parallelism()
+                .map_or(1, |n| (n.get() as u32 / 2).max(1)),
             resume_nodes_per_s_per_ip: 1.0e6,
         }
     }

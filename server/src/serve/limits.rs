@@ -100,9 +100,10 @@ impl Drop for SlotPermit {
 
 /// A token bucket per address: `rate` tokens a second up to `burst`.
 ///
-/// A taker of `cost` tokens goes ahead when the bucket holds `min(cost, burst)` and then owes
-/// the rest: the bucket may go negative, and the address waits until it has paid. So one large
-/// piece of work (a resume of a big cut) is admitted at once, and the next waits in proportion.
+/// A taker of `cost` tokens needs `min(cost, burst)` in the bucket, and may reserve them ahead
+/// when it is willing to wait: the bucket goes negative by the cost, and the next taker waits
+/// for that debt too. So one large piece of work (a resume of a big cut) is admitted at once,
+/// the next waits in proportion, and a queue longer than a taker's patience is refused.
 #[derive(Debug)]
 pub struct IpBuckets {
     /// Tokens added per second.
@@ -135,8 +136,16 @@ impl IpBuckets {
         IpBuckets::new(rate, 2.0 * rate)
     }
 
-    /// Takes `cost` tokens for `ip` at `now`, or says how long until it may.
-    pub fn take(&self, ip: IpAddr, now: Instant, cost: f64) -> Result<(), Duration> {
+    /// Takes `cost` tokens for `ip` at `now`, reserving them when they come within
+    /// `patience`: `Ok(wait)` says how long to wait before the work (zero when the tokens are
+    /// there), `Err(wait)` how long the wait would have been (nothing is taken).
+    pub fn take(
+        &self,
+        ip: IpAddr,
+        now: Instant,
+        cost: f64,
+        patience: Duration,
+    ) -> Result<Duration, Duration> {
         let mut guard = self.buckets.lock().unwrap_or_else(|e| e.into_inner());
         let (b, prune_at) = &mut *guard;
         if b.len() >= *prune_at {
@@ -153,17 +162,18 @@ impl IpBuckets {
             .min(self.burst);
         *last = now;
         let need = cost.min(self.burst);
-        if *tokens >= need {
+        let wait = Duration::from_secs_f64(((need - *tokens) / self.rate).max(0.0));
+        if wait <= patience {
             *tokens -= cost;
-            Ok(())
+            Ok(wait)
         } else {
-            Err(Duration::from_secs_f64((need - *tokens) / self.rate))
+            Err(wait)
         }
     }
 
-    /// Takes one token: false when the address is over its rate.
+    /// Takes one token now: false when the address is over its rate.
     pub fn allow(&self, ip: IpAddr, now: Instant) -> bool {
-        self.take(ip, now, 1.0).is_ok()
+        self.take(ip, now, 1.0, Duration::ZERO).is_ok()
     }
 }
 
@@ -201,19 +211,27 @@ mod tests {
     }
 
     #[test]
-    fn large_work_goes_ahead_then_is_paid_for() {
-        // 1000 tokens a second, bursts of 2000: a 10,000-token piece goes at once and the
-        // address then waits 10 s (8 s of debt plus 2 s to reach the next piece's burst).
+    fn large_work_goes_ahead_then_is_paid_for_and_a_long_queue_is_refused() {
+        // 1000 tokens a second, bursts of 2000: a 10,000-token piece goes at once; the next
+        // reserves its turn 10 s on (8 s of debt plus 2 s to reach its burst); a third would
+        // wait 20 s, past a patience of 15 s, and takes nothing.
         let r = IpBuckets::new(1000.0, 2000.0);
         let ip: IpAddr = "10.0.0.1".parse().unwrap();
         let t0 = Instant::now();
-        assert!(r.take(ip, t0, 10_000.0).is_ok());
-        let wait = r.take(ip, t0, 10_000.0).unwrap_err();
+        let p = Duration::from_secs(15);
+        assert_eq!(r.take(ip, t0, 10_000.0, p), Ok(Duration::ZERO));
+        let wait = r.take(ip, t0, 10_000.0, p).unwrap();
         assert!((wait.as_secs_f64() - 10.0).abs() < 1e-6, "{wait:?}");
-        assert!(r.take(ip, t0 + Duration::from_secs(9), 10_000.0).is_err());
-        assert!(r.take(ip, t0 + Duration::from_secs(10), 10_000.0).is_ok());
+        let refused = r.take(ip, t0, 10_000.0, p).unwrap_err();
+        assert!((refused.as_secs_f64() - 20.0).abs() < 1e-6, "{refused:?}");
+        // Nothing was taken by the refusal: at 20 s the third goes at once.
+        let t20 = t0 + Duration::from_secs(20);
+        assert_eq!(r.take(ip, t20, 10_000.0, p), Ok(Duration::ZERO));
         // Small work from another address is not held up.
-        assert!(r.take("10.0.0.2".parse().unwrap(), t0, 500.0).is_ok());
+        assert_eq!(
+            r.take("10.0.0.2".parse().unwrap(), t0, 500.0, Duration::ZERO),
+            Ok(Duration::ZERO)
+        );
     }
 
     #[test]

@@ -96,8 +96,8 @@ pub struct AppState {
     pub connections: SlotLimits,
     /// Resume work per address, in interior nodes of the resumed cuts.
     pub resume_work: IpBuckets,
-    /// Sessions being opened at once (a resume is rebuilt off the async runtime): a flood of
-    /// openings waits its turn instead of taking every core.
+    /// Large resumes being opened at once, each until its first delta: a flood of them waits
+    /// its turn instead of taking every core.
     pub openings: tokio::sync::Semaphore,
     /// Open sessions by id, for `GET /v1/sessions`.
     pub registry: Mutex<HashMap<u64, Arc<SessionStats>>>,

@@ -44,11 +44,13 @@ pub(super) async fn stream_loop<S, E>(
     terrain: &Arc<Terrain>,
     lod: &mut LodStream,
     budget: Option<u32>,
+    turn: Option<tokio::sync::SemaphorePermit<'_>>,
 ) -> Ended
 where
     S: Stream<Item = Result<Message, E>> + Sink<Message> + Unpin + Send,
     E: StdError + Send + Sync + 'static,
 {
+    let mut turn = turn;
     let mut draining = state.draining.clone();
     let mut f = Flow {
         pending: None,
@@ -98,6 +100,8 @@ where
                 usize::MAX
             };
             let produced = compute(lod, terrain, state, camera, allowance).await?;
+            // The first delta examined the whole resumed cut: a large resume's turn ends.
+            drop(turn.take());
             f.incomplete = !produced.complete;
             f.tokens -= produced.body.len() as f64;
             f.sent += 1;

@@ -68,52 +68,57 @@ where
 }
 
 /// The session's configuration, from the hello.
-struct Opening {
+struct Opening<'a> {
     /// The LOD state, from the root or the resumed cut.
     lod: LodStream,
     /// Bytes per second for delta bodies, if budgeted.
     budget: Option<u32>,
+    /// A large resume's turn among openings, given back after the first delta.
+    turn: Option<tokio::sync::SemaphorePermit<'a>>,
 }
 
 /// Longest a resume waits for its address's resume work to be paid for; past it the session
 /// is refused (and the client retries later).
 const MAX_RESUME_WAIT: Duration = Duration::from_secs(10);
 
+/// Interior nodes from which a resume is large enough to take a turn (see `open`): a first
+/// update over 100,000 interior nodes takes some 10 ms or more.
+const HEAVY_RESUME_NODES: u64 = 100_000;
+
 /// Memory a session holds before its LOD state: the WebSocket read buffer (see `ws.rs`).
 pub const SOCKET_BYTES: u64 = 4096;
 
 /// Paces resumes per address: a resume of `nodes` interior nodes goes ahead once the address
-/// has paid for its earlier ones, at the configured rate.
+/// has paid for its earlier ones, at the configured rate; one that would wait longer than
+/// [`MAX_RESUME_WAIT`] is refused.
 async fn pace_resume(state: &AppState, peer: SocketAddr, nodes: u64) -> Ended {
-    loop {
-        let wait = match state
-            .resume_work
-            .take(peer.ip(), std::time::Instant::now(), nodes as f64)
-        {
-            Ok(()) => return Ok(()),
-            Err(wait) => wait,
-        };
-        if wait > MAX_RESUME_WAIT {
-            return fail(
-                CloseReason::TooManyFromAddress,
-                format!(
-                    "{} resumed more than {:.0} interior nodes a second; retry in {:.0} s",
-                    peer.ip(),
-                    state.limits.resume_nodes_per_s_per_ip,
-                    wait.as_secs_f64().ceil()
-                ),
-            );
+    let now = std::time::Instant::now();
+    match state
+        .resume_work
+        .take(peer.ip(), now, nodes as f64, MAX_RESUME_WAIT)
+    {
+        Ok(wait) => {
+            tokio::time::sleep(wait).await;
+            Ok(())
         }
-        tokio::time::sleep(wait).await;
+        Err(wait) => fail(
+            CloseReason::TooManyFromAddress,
+            format!(
+                "{} resumed more than {:.0} interior nodes a second; retry in {:.0} s",
+                peer.ip(),
+                state.limits.resume_nodes_per_s_per_ip,
+                wait.as_secs_f64().ceil()
+            ),
+        ),
     }
 }
 
-async fn open(
+async fn open<'a>(
     hello: Hello,
     terrain: &Arc<Terrain>,
-    state: &AppState,
+    state: &'a AppState,
     stats: &SessionStats,
-) -> Result<(Opening, bool), (CloseReason, String)> {
+) -> Result<(Opening<'a>, bool), (CloseReason, String)> {
     if hello.version != PROTOCOL_VERSION {
         return fail(
             CloseReason::Version,
@@ -136,6 +141,7 @@ async fn open(
             ),
         );
     }
+    let mut turn = None;
     if let Some(r) = &hello.resume {
         // Accounted from the start: the snapshot, and the cut it becomes (under a byte per
         // interior node, twice while the first update reads the copy it resumed from).
@@ -148,13 +154,17 @@ async fn open(
         let bytes = SOCKET_BYTES + r.snapshot.bits.len() as u64 + 2 * nodes;
         stats.memory_bytes.store(bytes, Relaxed);
         pace_resume(state, stats.peer, nodes).await?;
+        if nodes >= HEAVY_RESUME_NODES {
+            // Large resumes take turns, until their first delta (which examines the whole
+            // resumed cut): a flood of them from many addresses cannot take every core.
+            turn =
+                Some(
+                    state.openings.acquire().await.map_err(|_| {
+                        (CloseReason::Internal, "the server is stopping".to_string())
+                    })?,
+                );
+        }
     }
-    // Openings take turns: a flood of large resumes cannot take every core.
-    let _turn = state
-        .openings
-        .acquire()
-        .await
-        .map_err(|_| (CloseReason::Internal, "the server is stopping".to_string()))?;
     let t = terrain.clone();
     let max_nodes = state.limits.max_cut_nodes as usize;
     let resumed = hello.resume.is_some();
@@ -204,7 +214,7 @@ async fn open(
     })
     .await;
     match built {
-        Ok(Ok(lod)) => Ok((Opening { lod, budget }, resumed)),
+        Ok(Ok(lod)) => Ok((Opening { lod, budget, turn }, resumed)),
         Ok(Err(e)) => fail(CloseReason::BadSnapshot, e),
         Err(e) => fail(CloseReason::Internal, format!("session setup failed: {e}")),
     }
@@ -229,7 +239,14 @@ where
         Some(_) => return fail(CloseReason::Protocol, "the first message must be a hello"),
     };
     let tiles = matches!(hello.kind, StreamKind::Tiles(_));
-    let (Opening { mut lod, budget }, resumed) = open(hello, &terrain, state, stats).await?;
+    let (
+        Opening {
+            mut lod,
+            budget,
+            turn,
+        },
+        resumed,
+    ) = open(hello, &terrain, state, stats).await?;
     stats
         .memory_bytes
         .store(SOCKET_BYTES + lod.memory_bytes() as u64, Relaxed);
@@ -250,7 +267,7 @@ where
     });
     send(socket, state, stats, &welcome).await?;
     state.metrics.sessions_active.fetch_add(1, Relaxed);
-    let r = stream_loop(socket, state, stats, &terrain, &mut lod, budget).await;
+    let r = stream_loop(socket, state, stats, &terrain, &mut lod, budget, turn).await;
     state.metrics.sessions_active.fetch_sub(1, Relaxed);
     r
 }
