@@ -2,7 +2,7 @@
 //! records how long each of its poses took to be answered. The hostile-input tests compare
 //! its latency during an attack with its latency before.
 
-use relief_client::session::{Session, SessionConfig};
+use relief_client::session::{Counters, Session, SessionConfig};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering::Relaxed};
 use std::time::{Duration, Instant};
@@ -14,8 +14,8 @@ pub struct Bystander {
     latencies: Arc<Mutex<Vec<Duration>>>,
     /// Tells the flight to stop.
     stop: Arc<AtomicBool>,
-    /// The flight; its result is the session's desync count.
-    task: tokio::task::JoinHandle<u64>,
+    /// The flight; its result is the session's counters.
+    task: tokio::task::JoinHandle<Counters>,
 }
 
 /// Median, 90th percentile and maximum of some latencies, milliseconds.
@@ -72,7 +72,7 @@ impl Bystander {
                     latencies.lock().await.push(t.elapsed());
                     tokio::time::sleep(Duration::from_millis(20)).await;
                 }
-                s.counters().desyncs
+                s.counters()
             }
         });
         Bystander {
@@ -102,8 +102,8 @@ impl Bystander {
         (out, l)
     }
 
-    /// Stops the flight; returns the session's desyncs.
-    pub async fn stop(self) -> u64 {
+    /// Stops the flight; returns the session's counters.
+    pub async fn stop(self) -> Counters {
         self.stop.store(true, Relaxed);
         self.task.await.expect("bystander flight")
     }

@@ -133,13 +133,25 @@ impl ChildServer {
         extra: &[&str],
         envs: &[(&str, &str)],
     ) -> ChildServer {
+        let store = test_store().display().to_string();
+        let mut args = vec!["--store", store.as_str()];
+        args.extend_from_slice(extra);
+        Self::start_with_args(bin, addr, &args, envs).await
+    }
+
+    /// `relief-server serve --addr ADDR` with `args` (which name the terrain) and extra
+    /// environment variables; waits for `/readyz`.
+    pub async fn start_with_args(
+        bin: &Path,
+        addr: SocketAddr,
+        args: &[&str],
+        envs: &[(&str, &str)],
+    ) -> ChildServer {
         let child = std::process::Command::new(bin)
             .arg("serve")
-            .arg("--store")
-            .arg(test_store())
             .arg("--addr")
             .arg(addr.to_string())
-            .args(extra)
+            .args(args)
             .env("RELIEF_LOG", "warn")
             .envs(envs.iter().copied())
             .spawn()

@@ -218,8 +218,50 @@ async fn an_oversized_one_shot_is_refused_with_a_reason() {
     .unwrap_err()
     .to_string();
     assert!(
-        e.contains("400") && e.contains("larger than 1024 bytes"),
+        e.contains("413") && e.contains("larger than 1024 bytes"),
         "{e}"
     );
+    server.stop().await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn fifty_thousand_points_in_ordinary_json_are_answered() {
+    // Issue 12: the documented 50,000 points, written by a JSON library at full precision
+    // (over 2 MB), were refused with 400 by a 1 MiB body limit.
+    let server = TestServer::start(Limits::default()).await;
+    let points: Vec<[f64; 2]> = (0..50_000)
+        .map(|i| {
+            let f = f64::from(i);
+            [
+                1000.123_456_789_012_3 + f * 0.1,
+                2000.987_654_321_098_7 + f * 0.05,
+            ]
+        })
+        .collect();
+    let body = serde_json::to_vec(&serde_json::json!({ "points": points })).unwrap();
+    assert!(body.len() > 1_900_000, "{}", body.len());
+    let b = request(
+        "POST",
+        &format!("{}/v1/heights", server.http()),
+        "application/json",
+        body,
+    )
+    .await
+    .unwrap();
+    let v: serde_json::Value = serde_json::from_slice(&b).unwrap();
+    assert_eq!(v["heights"].as_array().unwrap().len(), 50_000);
+    // One more point is refused, naming the limit.
+    let body =
+        serde_json::to_vec(&serde_json::json!({ "points": vec![[1.0, 1.0]; 50_001] })).unwrap();
+    let e = request(
+        "POST",
+        &format!("{}/v1/heights", server.http()),
+        "application/json",
+        body,
+    )
+    .await
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("400") && e.contains("at most 50000"), "{e}");
     server.stop().await;
 }

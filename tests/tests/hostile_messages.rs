@@ -1,5 +1,5 @@
-//! End to end over 127.0.0.1: bad input and limits each end with a close frame carrying a
-//! clear reason, and the server keeps serving everyone else (issue 3).
+//! Hostile input over 127.0.0.1 (issues 3 and 12): bad messages and limits each end with a
+//! close frame carrying a clear reason, and a bystander session keeps its latency.
 
 use futures_util::{SinkExt, StreamExt};
 use relief_client::session::{Session, SessionConfig};
@@ -9,6 +9,8 @@ use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, Resume, StreamKind, 
 use relief_proto::snapshot::Snapshot;
 use relief_proto::view::Lens;
 use relief_server::serve::config::Limits;
+use relief_tests::bystander::{Bystander, assert_kept};
+use relief_tests::raw::{connect_from, lo};
 use relief_tests::{TestServer, hello, hello_frame, path};
 use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
@@ -74,73 +76,67 @@ async fn bad_frames_close_with_a_reason_and_others_keep_going() {
     let server = TestServer::start(limits).await;
     let url = server.url();
     // A session that flies on through all of it.
-    let bystander = {
-        let url = url.clone();
-        tokio::spawn(async move {
-            let mut s = Session::connect(SessionConfig::new(&url)).await.unwrap();
-            for cam in path(4, 60) {
-                let seq = s.send_pose(cam).await.unwrap();
-                s.wait_for_pose(seq).await.unwrap();
-                tokio::time::sleep(Duration::from_millis(5)).await;
-            }
-            s.counters()
+    let by = Bystander::start(&url, 4).await;
+    let calm = by.measure(Duration::from_millis(400)).await;
+    let ((), attacked) = by
+        .during(async {
+            let hb = || Message::Binary(hello().into());
+            let ok_eye = [9000.0, 9000.0, 4000.0];
+
+            let r = send_and_close(&url, vec![Message::Binary(vec![0u8; 10_000].into())]).await;
+            assert_reason(r, CloseReason::TooLarge, "4096");
+            let r = send_and_close(&url, vec![Message::Binary(vec![9, 9, 9, 9, 9].into())]).await;
+            assert_reason(r, CloseReason::Malformed, "malformed");
+            let r = send_and_close(&url, vec![Message::Text("hello".into())]).await;
+            assert_reason(r, CloseReason::Malformed, "text frames");
+            let r = send_and_close(&url, vec![Message::Binary(hello_frame(99).into())]).await;
+            assert_reason(r, CloseReason::Version, "99");
+            let r = send_and_close(&url, vec![pose(1, ok_eye)]).await;
+            assert_reason(r, CloseReason::Protocol, "hello");
+            let r = send_and_close(&url, vec![hb(), pose(1, [f32::NAN, 0.0, 100.0])]).await;
+            assert_reason(r, CloseReason::BadCamera, "not finite");
+            let r = send_and_close(&url, vec![hb(), pose(1, [1e9, 0.0, 100.0])]).await;
+            assert_reason(r, CloseReason::BadCamera, "away from the terrain");
+            let r = send_and_close(&url, vec![hb(), bin(&ClientMsg::Ack { seq: 5 })]).await;
+            assert_reason(r, CloseReason::Protocol, "acknowledged delta 5");
+            let r = send_and_close(&url, vec![hb(), hb()]).await;
+            assert_reason(r, CloseReason::Protocol, "second hello");
+
+            let mk = |tau: f32, resume: Option<Resume>| {
+                bin(&ClientMsg::Hello(Hello {
+                    version: PROTOCOL_VERSION,
+                    kind: StreamKind::Vertex,
+                    lens: Lens::STANDARD.into(),
+                    tau,
+                    budget: None,
+                    resume,
+                }))
+            };
+            let r = send_and_close(&url, vec![mk(f32::NAN, None)]).await;
+            assert_reason(r, CloseReason::BadParams, "tau");
+            let id = server.state.terrain().unwrap().info.id;
+            let other_terrain = Resume {
+                terrain_id: id ^ 1,
+                snapshot: Snapshot {
+                    digest: 0,
+                    bits: vec![0],
+                },
+            };
+            let r = send_and_close(&url, vec![mk(1.0, Some(other_terrain))]).await;
+            assert_reason(r, CloseReason::BadSnapshot, "terrain");
+            let garbage = Resume {
+                terrain_id: id,
+                snapshot: Snapshot {
+                    digest: 12345,
+                    bits: vec![0xFF; 64],
+                },
+            };
+            let r = send_and_close(&url, vec![mk(1.0, Some(garbage))]).await;
+            assert_reason(r, CloseReason::BadSnapshot, "snapshot");
         })
-    };
-    let hb = || Message::Binary(hello().into());
-    let ok_eye = [9000.0, 9000.0, 4000.0];
-
-    let r = send_and_close(&url, vec![Message::Binary(vec![0u8; 10_000].into())]).await;
-    assert_reason(r, CloseReason::TooLarge, "4096");
-    let r = send_and_close(&url, vec![Message::Binary(vec![9, 9, 9, 9, 9].into())]).await;
-    assert_reason(r, CloseReason::Malformed, "malformed");
-    let r = send_and_close(&url, vec![Message::Text("hello".into())]).await;
-    assert_reason(r, CloseReason::Malformed, "text frames");
-    let r = send_and_close(&url, vec![Message::Binary(hello_frame(99).into())]).await;
-    assert_reason(r, CloseReason::Version, "99");
-    let r = send_and_close(&url, vec![pose(1, ok_eye)]).await;
-    assert_reason(r, CloseReason::Protocol, "hello");
-    let r = send_and_close(&url, vec![hb(), pose(1, [f32::NAN, 0.0, 100.0])]).await;
-    assert_reason(r, CloseReason::BadCamera, "not finite");
-    let r = send_and_close(&url, vec![hb(), pose(1, [1e9, 0.0, 100.0])]).await;
-    assert_reason(r, CloseReason::BadCamera, "away from the terrain");
-    let r = send_and_close(&url, vec![hb(), bin(&ClientMsg::Ack { seq: 5 })]).await;
-    assert_reason(r, CloseReason::Protocol, "acknowledged delta 5");
-    let r = send_and_close(&url, vec![hb(), hb()]).await;
-    assert_reason(r, CloseReason::Protocol, "second hello");
-
-    let mk = |tau: f32, resume: Option<Resume>| {
-        bin(&ClientMsg::Hello(Hello {
-            version: PROTOCOL_VERSION,
-            kind: StreamKind::Vertex,
-            lens: Lens::STANDARD.into(),
-            tau,
-            budget: None,
-            resume,
-        }))
-    };
-    let r = send_and_close(&url, vec![mk(f32::NAN, None)]).await;
-    assert_reason(r, CloseReason::BadParams, "tau");
-    let id = server.state.terrain().unwrap().info.id;
-    let other_terrain = Resume {
-        terrain_id: id ^ 1,
-        snapshot: Snapshot {
-            digest: 0,
-            bits: vec![0],
-        },
-    };
-    let r = send_and_close(&url, vec![mk(1.0, Some(other_terrain))]).await;
-    assert_reason(r, CloseReason::BadSnapshot, "terrain");
-    let garbage = Resume {
-        terrain_id: id,
-        snapshot: Snapshot {
-            digest: 12345,
-            bits: vec![0xFF; 64],
-        },
-    };
-    let r = send_and_close(&url, vec![mk(1.0, Some(garbage))]).await;
-    assert_reason(r, CloseReason::BadSnapshot, "snapshot");
-
-    let c = bystander.await.unwrap();
+        .await;
+    assert_kept("bad messages", calm, attacked);
+    let c = by.stop().await;
     assert_eq!((c.desyncs, c.reconnects), (0, 0));
     let m = server.state.metrics.render();
     for kind in [
@@ -200,50 +196,59 @@ async fn slowloris_and_connection_rate_are_cut_off() {
         ..Limits::default()
     };
     let server = TestServer::start(limits).await;
-    // Headers that never finish: the connection is closed after the header timeout.
-    let mut slow = tokio::net::TcpStream::connect(server.addr).await.unwrap();
-    slow.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n")
-        .await
-        .unwrap();
-    let t = Instant::now();
-    let mut buf = [0u8; 512];
-    loop {
-        // Trickle a byte now and then, as slowloris does; the deadline holds regardless.
-        match tokio::time::timeout(Duration::from_millis(200), slow.read(&mut buf)).await {
-            Ok(Ok(0)) | Ok(Err(_)) => break,
-            Ok(Ok(_)) => {}
-            Err(_) => {
-                let _ = slow.write_all(b"X").await;
+    let by = Bystander::start(&server.url(), 2).await;
+    let calm = by.measure(Duration::from_millis(400)).await;
+    let ((), attacked) = by
+        .during(async {
+            // Headers that never finish: the connection is closed after the header timeout.
+            let mut slow = connect_from(lo(2), server.addr).await.unwrap();
+            slow.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n")
+                .await
+                .unwrap();
+            let t = Instant::now();
+            let mut buf = [0u8; 512];
+            loop {
+                // Trickle a byte now and then, as slowloris does; the deadline holds regardless.
+                match tokio::time::timeout(Duration::from_millis(200), slow.read(&mut buf)).await {
+                    Ok(Ok(0)) | Ok(Err(_)) => break,
+                    Ok(Ok(_)) => {}
+                    Err(_) => {
+                        let _ = slow.write_all(b"X").await;
+                    }
+                }
+                assert!(
+                    t.elapsed() < Duration::from_secs(5),
+                    "slow headers not cut off"
+                );
             }
-        }
-        assert!(
-            t.elapsed() < Duration::from_secs(5),
-            "slow headers not cut off"
-        );
-    }
-    assert!(t.elapsed() >= Duration::from_millis(400));
+            assert!(t.elapsed() >= Duration::from_millis(400));
 
-    // Thirty connections at once: the burst (10) passes, the rest get 429.
-    let mut refused = 0;
-    for _ in 0..30 {
-        let mut c = tokio::net::TcpStream::connect(server.addr).await.unwrap();
-        let _ = c
-            .write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
-            .await;
-        let mut text = Vec::new();
-        let _ = tokio::time::timeout(Duration::from_secs(2), c.read_to_end(&mut text)).await;
-        let text = String::from_utf8_lossy(&text);
-        if text.starts_with("HTTP/1.1 429") {
-            assert!(text.contains("too many connections"), "{text}");
-            refused += 1;
-        } else {
-            assert!(text.starts_with("HTTP/1.1 200"), "{text}");
-        }
-    }
-    assert!((15..=21).contains(&refused), "{refused} refused");
-    assert!(server.state.metrics.render().contains(&format!(
-        "relief_errors_total{{kind=\"rate_limited\"}} {refused}"
-    )));
+            // Thirty connections at once: the burst (10) passes, the rest get 429.
+            let mut refused = 0;
+            for _ in 0..30 {
+                let mut c = connect_from(lo(2), server.addr).await.unwrap();
+                let _ = c
+                    .write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+                    .await;
+                let mut text = Vec::new();
+                let _ =
+                    tokio::time::timeout(Duration::from_secs(2), c.read_to_end(&mut text)).await;
+                let text = String::from_utf8_lossy(&text);
+                if text.starts_with("HTTP/1.1 429") {
+                    assert!(text.contains("too many connections"), "{text}");
+                    refused += 1;
+                } else {
+                    assert!(text.starts_with("HTTP/1.1 200"), "{text}");
+                }
+            }
+            assert!((15..=21).contains(&refused), "{refused} refused");
+            assert!(server.state.metrics.render().contains(&format!(
+                "relief_errors_total{{kind=\"rate_limited\"}} {refused}"
+            )));
+        })
+        .await;
+    assert_kept("slowloris and a connection burst", calm, attacked);
+    assert_eq!(by.stop().await.desyncs, 0);
     server.stop().await;
 }
 
@@ -304,6 +309,28 @@ async fn a_cut_past_the_node_limit_ends_the_session_with_a_reason() {
         camera: WireCamera::from(cam),
     });
     let r = send_and_close(&server.url(), vec![Message::Binary(hello().into()), pose]).await;
-    assert_reason(r, CloseReason::BadParams, "limit of 100 interior nodes");
+    assert_reason(r, CloseReason::CutLimit, "limit of 100 interior nodes");
+    // The one-shot applies the same limit, in the same words.
+    let req = relief_proto::msg::LodRequest {
+        version: PROTOCOL_VERSION,
+        lens: Lens::STANDARD.into(),
+        tau: 1.0,
+        camera: WireCamera::from(cam),
+        base: None,
+    };
+    let e = relief_client::http::request(
+        "POST",
+        &format!("{}/v1/lod", server.http()),
+        "application/octet-stream",
+        codec::encode(&req),
+    )
+    .await
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("400")
+            && e.contains("cut_limit: the cut reached the server's limit of 100 interior nodes"),
+        "{e}"
+    );
     server.stop().await;
 }
