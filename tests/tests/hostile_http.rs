@@ -239,3 +239,34 @@ async fn under_an_open_file_limit_of_300_accept_and_health_keep_working() {
         "the lowered limit is not logged: {text}"
     );
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_idle_kept_alive_connection_is_closed_after_the_header_timeout() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let limits = Limits {
+        header_timeout: Duration::from_millis(500),
+        ..Limits::default()
+    };
+    let server = TestServer::start(limits).await;
+    let mut tcp = relief_tests::raw::connect_from(lo(2), server.addr)
+        .await
+        .unwrap();
+    tcp.write_all(b"GET /healthz HTTP/1.1\r\nHost: x\r\n\r\n")
+        .await
+        .unwrap();
+    let (status, _) = read_response(&mut tcp, Duration::from_secs(2))
+        .await
+        .unwrap();
+    assert_eq!(status, 200);
+    // Kept alive, then silent: closed once the next request's headers are overdue.
+    let t = Instant::now();
+    let mut buf = [0u8; 64];
+    let r = tokio::time::timeout(Duration::from_secs(5), tcp.read(&mut buf)).await;
+    assert!(matches!(r, Ok(Ok(0)) | Ok(Err(_))), "{r:?}");
+    assert!(
+        t.elapsed() >= Duration::from_millis(400),
+        "{:?}",
+        t.elapsed()
+    );
+    server.stop().await;
+}

@@ -235,3 +235,22 @@ pub(super) fn tile_params(config: &SessionConfig) -> Option<relief_proto::msg::T
         StreamKind::Tiles(p) => Some(p),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn protocol_and_invalid_text_closes_are_fatal_and_a_bare_close_is_retried() {
+        // Issue 12: the server now closes RFC 6455 violations with 1002 and invalid UTF-8 with
+        // 1007; retrying would only repeat the fault. A close with no code (1005), or a
+        // restart (1012), is worth retrying.
+        for code in [1002, 1007, 4009] {
+            let e = closed(code, "protocol: x".into()).unwrap_err();
+            assert!(matches!(e, ClientError::Closed { code: c, .. } if c == code));
+        }
+        for code in [1005, 1012, 1013, 4006] {
+            assert!(closed(code, String::new()).is_ok(), "{code}");
+        }
+    }
+}
