@@ -233,8 +233,8 @@ async fn fifty_thousand_points_in_ordinary_json_are_answered() {
         .map(|i| {
             let f = f64::from(i);
             [
-                1000.123_456_789_012_3 + f * 0.1,
-                2000.987_654_321_098_7 + f * 0.05,
+                1_000.123_456_789_012_3 + f * 0.1,
+                2_000.987_654_321_098_7 + f * 0.05,
             ]
         })
         .collect();
