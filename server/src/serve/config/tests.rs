@@ -1,0 +1,114 @@
+//! Precedence, address resolution and error messages of the configuration.
+
+use super::*;
+use std::io::Write;
+
+#[test]
+fn flags_beat_the_file_which_beats_the_defaults() {
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(
+        f,
+        "max_sessions = 7\nmax_in_flight = 2\nidle_timeout_s = 1.5"
+    )
+    .unwrap();
+    let args = ServeArgs {
+        config: Some(f.path().to_path_buf()),
+        max_sessions: Some(9),
+        ..ServeArgs::default()
+    };
+    let c = args.resolve().unwrap();
+    assert_eq!(c.limits.max_sessions, 9);
+    assert_eq!(c.limits.max_in_flight, 2);
+    assert_eq!(c.limits.idle_timeout, Duration::from_millis(1500));
+    assert_eq!(
+        c.limits.max_sessions_per_ip,
+        Limits::default().max_sessions_per_ip
+    );
+    assert_eq!(c.source, TerrainSource::Embedded);
+    assert_eq!(c.addr.to_string(), DEFAULT_ADDR);
+}
+
+#[test]
+fn host_names_resolve_and_bad_addresses_say_what_to_give() {
+    let args = ServeArgs {
+        addr: Some("localhost:8080".into()),
+        ..ServeArgs::default()
+    };
+    let c = args.resolve().unwrap();
+    assert!(
+        c.addr.ip().is_loopback() && c.addr.port() == 8080,
+        "{}",
+        c.addr
+    );
+    for bad in ["8080", "localhost", "127.0.0.1:99999"] {
+        let args = ServeArgs {
+            addr: Some(bad.into()),
+            ..ServeArgs::default()
+        };
+        let e = args.resolve().unwrap_err().to_string();
+        assert!(e.contains("HOST:PORT") && e.contains(bad), "{e}");
+    }
+}
+
+#[test]
+fn bad_files_and_values_are_named() {
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "max_sesions = 7").unwrap();
+    let args = ServeArgs {
+        config: Some(f.path().to_path_buf()),
+        ..ServeArgs::default()
+    };
+    let e = args.resolve().unwrap_err().to_string();
+    assert!(e.contains("max_sesions"), "{e}");
+
+    let args = ServeArgs {
+        idle_timeout_s: Some(f64::NAN),
+        ..ServeArgs::default()
+    };
+    assert!(
+        args.resolve()
+            .unwrap_err()
+            .to_string()
+            .contains("idle_timeout_s")
+    );
+    let args = ServeArgs {
+        config: Some("/nonexistent/relief.toml".into()),
+        ..ServeArgs::default()
+    };
+    assert!(
+        args.resolve()
+            .unwrap_err()
+            .to_string()
+            .contains("cannot read")
+    );
+}
+
+#[test]
+fn connection_limits_follow_the_session_limits_unless_set() {
+    let args = ServeArgs {
+        max_sessions: Some(20_000),
+        max_sessions_per_ip: Some(5000),
+        ..ServeArgs::default()
+    };
+    let c = args.resolve().unwrap();
+    assert_eq!(c.limits.max_connections_per_ip, 5100);
+    assert_eq!(c.limits.max_connections, 21_000);
+    let args = ServeArgs {
+        max_connections_per_ip: Some(7),
+        body_timeout_s: Some(0.0),
+        ..ServeArgs::default()
+    };
+    assert!(
+        args.resolve()
+            .unwrap_err()
+            .to_string()
+            .contains("body_timeout_s")
+    );
+    let args = ServeArgs {
+        max_connections_per_ip: Some(7),
+        ..ServeArgs::default()
+    };
+    let c = args.resolve().unwrap();
+    assert_eq!(c.limits.max_connections_per_ip, 7);
+    assert_eq!(c.limits.max_connections, Limits::default().max_connections);
+}
