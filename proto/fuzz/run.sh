@@ -61,9 +61,10 @@ for t in $targets; do
         passed=$((passed + 1))
     else
         runs=$(grep -oE '^#[0-9]+' "$log" | tail -n 1 | tr -d '#' || true)
-        echo "fuzz $t: CRASHED (exit $status) after about ${runs:-0} runs; input in" \
-            "proto/fuzz/artifacts/$t/, log in proto/fuzz/$log:"
-        tail -n 40 "$log" | sed 's/^/    /'
+        echo "fuzz $t: CRASHED (exit $status) after about ${runs:-0} runs (0: on a seed or" \
+            "corpus input); input in proto/fuzz/artifacts/$t/, log in proto/fuzz/$log:"
+        grep -E 'panicked at|ERROR: libFuzzer|^SUMMARY|Test unit written|^error' "$log" |
+            head -n 12 | sed 's/^/    /' || true
         failed=$((failed + 1))
     fi
 done
