@@ -20,7 +20,8 @@
 //!    largest child-to-parent offset, which the node's error can never be below).
 //!
 //! All orders are chosen per delta to minimise the body. Decoding checks every index against the
-//! tree and every value against its range, and never allocates more entries than there are bits.
+//! tree and every value against its range, and reserves room for at most [`RESERVE_MAX`] entries
+//! up front: beyond that, lists grow only as their entries decode.
 //!
 //! [`SplitEntropy`] measures what a run's split payloads carry under this coder's model, for the
 //! benchmark (issue 11, "Bytes").
@@ -177,8 +178,8 @@ impl Delta {
         let mut delta = Delta {
             seq,
             digest,
-            merges: Vec::with_capacity(n_merges as usize),
-            splits: Vec::with_capacity(n_splits as usize),
+            merges: Vec::with_capacity(reserve(n_merges)),
+            splits: Vec::with_capacity(reserve(n_splits)),
         };
         let mut prev = None;
         for _ in 0..n_merges {
@@ -186,7 +187,7 @@ impl Delta {
                 .merges
                 .push(next_node(shape, &mut r, orders[0], &mut prev)?);
         }
-        let mut nodes = Vec::with_capacity(n_splits as usize);
+        let mut nodes = Vec::with_capacity(reserve(n_splits));
         let mut prev = None;
         for _ in 0..n_splits {
             nodes.push(next_node(shape, &mut r, orders[1], &mut prev)?);
@@ -225,6 +226,16 @@ impl Delta {
         }
         Ok(delta)
     }
+}
+
+/// The most entries [`Delta::unpack_body`] reserves room for before decoding them. A count that
+/// passes the bit check can still claim one entry per bit of the body, and reserving for all of
+/// them made a 1 MiB body of garbage take 335 MB before it was refused (issue 12).
+pub const RESERVE_MAX: u64 = 1 << 12;
+
+/// Room to reserve for a list whose count a body claims.
+fn reserve(n: u64) -> usize {
+    n.min(RESERVE_MAX) as usize
 }
 
 /// The Morton (Z-order) code of a node within its level: x and y bits interleaved.
@@ -367,6 +378,33 @@ mod tests {
         assert_eq!(
             Delta::unpack_body(&shape, 0.25, 0, 0, &body),
             Err(BodyError::Malformed)
+        );
+    }
+
+    /// Issue 12: a count that the bits could hold, in a body of garbage, reserved room for every
+    /// claimed entry (a 1 MiB body, about 335 MB) before its second entry failed to decode.
+    #[test]
+    fn issue_12_lying_counts_reserve_little() {
+        assert_eq!(reserve(u64::MAX), RESERVE_MAX as usize);
+        assert_eq!(reserve(17), 17);
+        let shape = TreeShape::new(65, 65).unwrap();
+        let mut w = BitWriter::new();
+        w.put_eg(0, 0);
+        w.put_eg((8 << 20) - 1000, 0);
+        w.put(0, 12);
+        // All ones: the root, then the node after it on level 0, which does not exist.
+        for _ in 0..(1 << 18) - 4 {
+            w.put(u32::MAX, 32);
+        }
+        let body = w.finish();
+        assert!(body.len() <= 1 << 20);
+        assert_eq!(
+            Delta::unpack_body(&shape, 0.25, 0, 0, &body),
+            Err(BodyError::UnknownNode(NodeId {
+                level: 0,
+                x: 1,
+                y: 0
+            }))
         );
     }
 

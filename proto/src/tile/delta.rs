@@ -52,6 +52,11 @@ pub enum TileDeltaError {
     Trailing(usize),
 }
 
+/// The most tiles [`TileDelta::decode`] reserves room for in a list before decoding them. A
+/// count that passes the length check can still claim one tile per byte left, and reserving for
+/// all of them made a 2 MiB body of garbage reserve 117 MB before it was refused (issue 12).
+pub const RESERVE_MAX: usize = 1 << 12;
+
 /// Appends `v` as an unsigned LEB128 varint.
 pub fn put_varint(out: &mut Vec<u8>, mut v: u32) {
     while v >= 0x80 {
@@ -108,20 +113,21 @@ impl TileDelta {
         out
     }
 
-    /// Unpacks a body for a pyramid of `tile_count` tiles. Never allocates more than the input
-    /// can describe.
+    /// Unpacks a body for a pyramid of `tile_count` tiles. Reserves room for at most
+    /// [`RESERVE_MAX`] tiles per list up front: beyond that, lists grow as their tiles decode.
     pub fn decode(b: &[u8], tile_count: u32) -> Result<TileDelta, TileDeltaError> {
         let mut at = 0usize;
-        let ids = |b: &[u8], at: &mut usize| -> Result<Vec<u32>, TileDeltaError> {
+        let count = |b: &[u8], at: &mut usize| -> Result<usize, TileDeltaError> {
             let n = get_varint(b, at)? as usize;
             if n > tile_count as usize || n > b.len() - *at {
                 return Err(TileDeltaError::Truncated);
             }
-            Ok(Vec::with_capacity(n))
+            Ok(n)
         };
-        let mut removed = ids(b, &mut at)?;
+        let n_removed = count(b, &mut at)?;
+        let mut removed = Vec::with_capacity(n_removed.min(RESERVE_MAX));
         let mut next = 0u64;
-        for i in 0..removed.capacity() {
+        for i in 0..n_removed {
             let t = next + u64::from(get_varint(b, &mut at)?);
             if t >= tile_count as u64 || (i > 0 && t == next) {
                 return Err(TileDeltaError::Tile(t));
@@ -129,8 +135,8 @@ impl TileDelta {
             removed.push(t as u32);
             next = t;
         }
-        let n_added = ids(b, &mut at)?.capacity();
-        let mut added = Vec::with_capacity(n_added);
+        let n_added = count(b, &mut at)?;
+        let mut added = Vec::with_capacity(n_added.min(RESERVE_MAX));
         next = 0;
         for i in 0..n_added {
             let t = next + u64::from(get_varint(b, &mut at)?);
@@ -191,6 +197,20 @@ mod tests {
                 prop_assert!(d.removed.len() + d.added.len() <= bytes.len());
             }
         }
+    }
+
+    /// Issue 12: a count that the bytes left could hold, in a body of garbage, reserved room for
+    /// every claimed tile (a 2 MiB body, 117 MB) before the second tile failed to decode.
+    #[test]
+    fn issue_12_lying_counts_reserve_little() {
+        let mut body = vec![0];
+        put_varint(&mut body, (2 << 20) - 8);
+        body.resize(2 << 20, 0);
+        // Tile 0 from the cache, then tile 0 again: not ascending.
+        assert_eq!(
+            TileDelta::decode(&body, u32::MAX),
+            Err(TileDeltaError::Tile(0))
+        );
     }
 
     #[test]

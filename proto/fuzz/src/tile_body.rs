@@ -1,0 +1,136 @@
+//! Target `tile_body`: a [`Header`] (grid size; the parameter picks the tile size, 2 to 256)
+//! and then a tile delta body, decoded as a tile client does: [`TileDelta::decode`] for the
+//! pyramid, then each added tile's mesh blob ([`decode_mesh`]) and patch blob
+//! ([`decode_patches`]; against the decoded heights, or flat ones when the mesh is refused, so
+//! that patch blobs are explored on their own too).
+//!
+//! Whatever decodes is re-encoded and decoded again to the same value. The delta's re-encoding
+//! must be the shortest form of the input ([`crate::assert_canonical`]); a patch blob's must be
+//! no longer than the input (orders are chosen to minimise it). A mesh re-encodes to heights
+//! equal to the decoded ones (the encoder picks its own `zmin` and order, so the bytes may
+//! differ), and re-encoding that gives the same bytes. Patches must name vertices of the tile.
+
+use crate::Header;
+use relief_proto::tile::body::{
+    decode_mesh, decode_patches, encode_mesh, encode_patches, find_patches,
+};
+use relief_proto::tile::delta::{AddedTile, TileBlobs, TileDelta};
+use relief_proto::tile::{TileId, TileShape};
+
+/// Decodes and round-trips one input; true if the tile delta decoded.
+pub fn check(data: &[u8]) -> bool {
+    let Some((header, body)) = Header::split(data) else {
+        return false;
+    };
+    let tile = 2 << (header.param % 8);
+    let Ok(shape) = TileShape::new(header.width, header.height, tile) else {
+        return false;
+    };
+    let Ok(delta) = TileDelta::decode(body, shape.tile_count()) else {
+        return false;
+    };
+    let bytes = delta.encode();
+    crate::assert_canonical(body, &bytes);
+    assert_eq!(
+        TileDelta::decode(&bytes, shape.tile_count()).as_ref(),
+        Ok(&delta)
+    );
+    for added in &delta.added {
+        let t = shape.tile(added.tile).expect("a decoded index is a tile");
+        if let Some(blobs) = &added.body {
+            tile_blobs(&shape, t, blobs);
+        }
+    }
+    true
+}
+
+/// Decodes and round-trips the blobs of tile `t`.
+fn tile_blobs(shape: &TileShape, t: TileId, blobs: &TileBlobs) {
+    let span = shape.span(t);
+    let n = span.vertex_count();
+    let z = match decode_mesh(&span, &blobs.mesh) {
+        Ok(z) => {
+            assert_eq!(z.len(), n);
+            let mesh = encode_mesh(&span, &z);
+            assert_eq!(decode_mesh(&span, &mesh).as_ref(), Ok(&z));
+            let again = decode_mesh(&span, &mesh).expect("an encoded mesh");
+            assert_eq!(encode_mesh(&span, &again), mesh);
+            z
+        }
+        Err(_) => vec![0; n],
+    };
+    let Ok(patches) = decode_patches(shape, t, &z, &blobs.patches) else {
+        return;
+    };
+    let n = n as u32;
+    assert!(patches.dropped.iter().all(|d| d.a < n && d.c < n));
+    assert!(patches.raised.iter().flatten().all(|&v| v < n));
+    let blob = encode_patches(shape, t, &z, &patches);
+    assert!(
+        blob.len() <= blobs.patches.len(),
+        "re-encoding grew {} bytes to {}",
+        blobs.patches.len(),
+        blob.len()
+    );
+    assert_eq!(decode_patches(shape, t, &z, &blob), Ok(patches));
+}
+
+/// The blobs of tile `t` over a made-up terrain: a tilted plane with bumps, in z quanta.
+fn made_up_blobs(shape: &TileShape, t: TileId) -> TileBlobs {
+    let sample = |c: u32, r: u32| (3 * c + 2 * r) as i32 + ((c * 7 + r * 13) % 11) as i32 - 5;
+    let span = shape.span(t);
+    let z: Vec<i32> = (0..span.vertex_count() as u32)
+        .map(|v| {
+            let (c, r) = span.vertex_pos(v);
+            sample(c, r)
+        })
+        .collect();
+    let patches = find_patches(shape, t, &z, sample);
+    TileBlobs {
+        mesh: encode_mesh(&span, &z),
+        patches: encode_patches(shape, t, &z, &patches),
+    }
+}
+
+/// Tile deltas on small pyramids: the root tile sent, the root split into its children, and
+/// a merge back from the cache.
+pub fn seeds() -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    for (w, h, param) in [(5, 3, 0), (40, 30, 1)] {
+        let shape = TileShape::new(w, h, 2 << param).expect("a small pyramid");
+        let header = Header {
+            width: w,
+            height: h,
+            param,
+        };
+        let root = TileId::ROOT;
+        let first = TileDelta {
+            removed: vec![],
+            added: vec![AddedTile {
+                tile: 0,
+                body: Some(made_up_blobs(&shape, root)),
+            }],
+        };
+        let split = TileDelta {
+            removed: vec![0],
+            added: shape
+                .children(root)
+                .map(|c| AddedTile {
+                    tile: shape.index(c),
+                    body: Some(made_up_blobs(&shape, c)),
+                })
+                .collect(),
+        };
+        let back = TileDelta {
+            removed: shape.children(root).map(|c| shape.index(c)).collect(),
+            added: vec![AddedTile {
+                tile: 0,
+                body: None,
+            }],
+        };
+        for (name, d) in [("root", first), ("split", split), ("merge", back)] {
+            out.push((format!("{name}_{w}x{h}"), header.with(&d.encode())));
+        }
+    }
+    out
+}
