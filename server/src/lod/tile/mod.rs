@@ -6,7 +6,8 @@
 //! - [`select`]: the selection for a camera: refine while the screen error exceeds tau, then
 //!   refine coarser neighbours until no two edge-adjacent tiles differ by more than one level;
 //! - [`session`]: one session's active tiles and client cache, and the budgeted, cache-aware
-//!   tile delta from one selection to the next.
+//!   tile delta from one selection to the next;
+//! - [`mesh`]: tile meshes over a grid of samples and their error (issue 13).
 //!
 //! **Screen error.** Cesium's screen-space-error rule: a tile's geometric error (metres, honest
 //! and saturated: `store::tiles`) times the focal length in pixels, over the distance from the
@@ -15,6 +16,7 @@
 //! selection always covers the whole terrain once.
 
 pub mod bits;
+pub mod mesh;
 pub mod select;
 pub mod session;
 #[cfg(test)]

@@ -1,0 +1,148 @@
+//! Tile meshes over a grid of samples (issue 13): what every mesh kind shares.
+//!
+//! A mesh kind takes the heights of a tile's samples and a vertical tolerance, and returns a
+//! [`TriMesh`] whose vertices are a subset of the samples and whose triangles cover the tile's
+//! grid exactly once. Its *error* is the largest vertical distance between the mesh (each
+//! triangle interpolated linearly) and any sample ([`TriMesh::max_error`]).
+//!
+//! Conventions: a sample is addressed by `[col, row]`; columns grow east, rows grow south (as in
+//! the store). Triangles are counter-clockwise seen from above in world axes (x east, y north),
+//! which is clockwise in `(col, row)` image axes.
+
+/// Heights on a regular grid, row-major, metres.
+#[derive(Clone, Copy, Debug)]
+pub struct HeightGrid<'a> {
+    /// Samples per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// `width * height` heights, row by row from the north.
+    pub z: &'a [f32],
+}
+
+impl<'a> HeightGrid<'a> {
+    /// A grid over `z`; `None` when the sizes do not match or a side is under 2 samples.
+    pub fn new(width: usize, height: usize, z: &'a [f32]) -> Option<HeightGrid<'a>> {
+        (width >= 2 && height >= 2 && z.len() == width * height).then_some(HeightGrid {
+            width,
+            height,
+            z,
+        })
+    }
+
+    /// The height at `[col, row]`.
+    #[inline]
+    pub fn at(&self, col: u32, row: u32) -> f32 {
+        self.z[row as usize * self.width + col as usize]
+    }
+}
+
+/// A triangle mesh over grid samples.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriMesh {
+    /// Vertices: sample positions `[col, row]`.
+    pub vertices: Vec<[u32; 2]>,
+    /// Triangles: three vertex indices each, counter-clockwise seen from above.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Twice the signed area of triangle `a b c` in world axes (x = col, y = -row): positive when
+/// counter-clockwise seen from above.
+#[inline]
+pub fn area2(a: [u32; 2], b: [u32; 2], c: [u32; 2]) -> i64 {
+    let (ax, ay) = (i64::from(a[0]), -i64::from(a[1]));
+    let (bx, by) = (i64::from(b[0]), -i64::from(b[1]));
+    let (cx, cy) = (i64::from(c[0]), -i64::from(c[1]));
+    (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+}
+
+impl TriMesh {
+    /// Whether every triangle is counter-clockwise and non-degenerate, and the triangles'
+    /// areas add up to the grid's: with no overlaps (a watertight planar mesh over the grid's
+    /// rectangle has exactly that area), the grid is covered once.
+    pub fn covers(&self, width: usize, height: usize) -> bool {
+        let mut area = 0i64;
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| self.vertices[i as usize]);
+            let a2 = area2(a, b, c);
+            if a2 <= 0 {
+                return false;
+            }
+            area += a2;
+        }
+        area == 2 * (width as i64 - 1) * (height as i64 - 1)
+    }
+
+    /// The largest vertical distance, metres, between the mesh and every sample of `grid`
+    /// inside its triangles (brute force: each triangle's bounding box of samples is tested
+    /// point by point, barycentric interpolation in `f64`). Samples on shared edges are tested
+    /// by every triangle that holds them.
+    pub fn max_error(&self, grid: &HeightGrid<'_>) -> f32 {
+        let mut worst = 0.0f64;
+        for t in &self.triangles {
+            let v = t.map(|i| self.vertices[i as usize]);
+            let z = v.map(|p| f64::from(grid.at(p[0], p[1])));
+            let d = area2(v[0], v[1], v[2]) as f64;
+            if d == 0.0 {
+                continue;
+            }
+            let c0 = v.iter().map(|p| p[0]).min().unwrap_or(0);
+            let c1 = v.iter().map(|p| p[0]).max().unwrap_or(0);
+            let r0 = v.iter().map(|p| p[1]).min().unwrap_or(0);
+            let r1 = v.iter().map(|p| p[1]).max().unwrap_or(0);
+            for r in r0..=r1 {
+                for c in c0..=c1 {
+                    let p = [c, r];
+                    let w0 = area2(v[1], v[2], p) as f64 / d;
+                    let w1 = area2(v[2], v[0], p) as f64 / d;
+                    let w2 = area2(v[0], v[1], p) as f64 / d;
+                    if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                        continue;
+                    }
+                    let m = w0 * z[0] + w1 * z[1] + w2 * z[2];
+                    worst = worst.max((m - f64::from(grid.at(c, r))).abs());
+                }
+            }
+        }
+        worst as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The two triangles of a `w x h` grid's corners (NW-SE diagonal).
+    fn corners(w: u32, h: u32) -> TriMesh {
+        TriMesh {
+            vertices: vec![[0, 0], [w - 1, 0], [0, h - 1], [w - 1, h - 1]],
+            triangles: vec![[0, 2, 3], [0, 3, 1]],
+        }
+    }
+
+    #[test]
+    fn a_plane_has_no_error_and_a_bump_has_its_height() {
+        let (w, h) = (9usize, 5usize);
+        let plane: Vec<f32> = (0..w * h)
+            .map(|i| 2.0 * (i % w) as f32 - 0.5 * (i / w) as f32 + 10.0)
+            .collect();
+        let g = HeightGrid::new(w, h, &plane).unwrap();
+        let m = corners(w as u32, h as u32);
+        assert!(m.covers(w, h));
+        assert!(m.max_error(&g) < 1e-4);
+        let mut bump = plane.clone();
+        bump[2 * w + 4] += 7.5;
+        let g = HeightGrid::new(w, h, &bump).unwrap();
+        assert!((m.max_error(&g) - 7.5).abs() < 1e-4);
+    }
+
+    #[test]
+    fn wrong_winding_or_missing_area_is_caught() {
+        let mut m = corners(5, 5);
+        m.triangles[0].swap(1, 2);
+        assert!(!m.covers(5, 5));
+        let mut m = corners(5, 5);
+        m.triangles.pop();
+        assert!(!m.covers(5, 5));
+    }
+}
