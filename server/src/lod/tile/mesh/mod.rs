@@ -8,6 +8,12 @@
 //! Conventions: a sample is addressed by `[col, row]`; columns grow east, rows grow south (as in
 //! the store). Triangles are counter-clockwise seen from above in world axes (x east, y north),
 //! which is clockwise in `(col, row)` image axes.
+//!
+//! - [`rqt`]: paper 002's restricted-quadtree mesh, from saturated vertex errors;
+//! - [`fractal`]: paper 002's box-counting fractal dimension and its region tree.
+
+pub mod fractal;
+pub mod rqt;
 
 /// Heights on a regular grid, row-major, metres.
 #[derive(Clone, Copy, Debug)]

@@ -1,0 +1,188 @@
+//! Paper 002, section 2.1: the box-counting fractal dimension of a terrain region, and the
+//! adaptive region quadtree it drives (flat regions stop subdividing early).
+//!
+//! **Box counting (section 2.1.1).** The surface `F` is the region's samples joined linearly
+//! (the grid's triangles). Its bounding box is cut into cubes of side `eps`: `b x b` cells
+//! across, and `eps = b * g` metres tall, where `g = sqrt(dx * dy)` is the ground spacing in
+//! metres, so that heights and ground are in the same unit and a cube is a cube (exactly so
+//! where `dx = dy`). Over each column of `b x b` cells the surface spans the heights between
+//! its lowest and highest sample (a linear surface takes its extremes at vertices), so the
+//! cubes it meets there are `floor((zmax - z0) / eps) - floor((zmin - z0) / eps) + 1`, with
+//! `z0` the bounding box's floor; `N(eps)` is their sum. The paper counts at 3 to 5 sizes;
+//! here the sizes are powers of two from a quarter of the region's shorter side down, at most
+//! [`FractalParams::scales`] of them and at least 3 (a 64-cell region uses b = 1, 2, 4, 8, 16).
+//! The dimension is minus the least-squares slope of `ln N(eps)` against `ln eps`. A plane
+//! gives 2 (tilted or not: its cubes per column do not change with scale), white noise much
+//! taller than the spacing nearly 3, and real terrain between (fractional Brownian relief
+//! with Hurst exponent H gives `3 - H`).
+//!
+//! **Region tree (section 2.1.2).** The paper splits regions into four equal quadrants while
+//! their dimension is high ("near 2.3": subdivide) and stops where it is near 2.0 (flat). The
+//! regions here are the tile pyramid's tiles (their spans, [`TileShape::span`]), so a leaf
+//! names the level at which the pyramid may stop refining. A region subdivides while its
+//! side is larger than the largest leaf its dimension `D` allows: the whole grid at
+//! `D <= flat`, the finest tiles at `D >= rough`, and log-linearly in between. The two
+//! thresholds are [`FractalParams`]; `docs/fractal.md` justifies their defaults.
+
+use super::HeightGrid;
+use relief_proto::tile::{TileId, TileShape};
+
+/// Thresholds of the region tree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FractalParams {
+    /// Dimension at or below which a region is flat: a leaf, whatever its size.
+    pub flat: f32,
+    /// Dimension at or above which a region subdivides down to the finest tiles.
+    pub rough: f32,
+    /// The most box sizes one estimate regresses over (the paper's 3 to 5).
+    pub scales: u32,
+}
+
+impl Default for FractalParams {
+    fn default() -> Self {
+        FractalParams {
+            flat: 2.02,
+            rough: 2.12,
+            scales: 5,
+        }
+    }
+}
+
+/// A leaf of the region tree.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FractalLeaf {
+    /// The tile whose span the region is.
+    pub tile: TileId,
+    /// Its box-counting dimension; `None` where the region is under 16 cells across (too few
+    /// box sizes for a slope).
+    pub dimension: Option<f32>,
+}
+
+/// `(eps, N(eps))` for each box size over the samples `cols` x `rows` (first and last,
+/// inclusive) of `grid`, finest first; `spacing` is the ground metres between columns and
+/// between rows. Empty when the region is under 16 cells across.
+pub fn box_counts(
+    grid: &HeightGrid<'_>,
+    spacing: [f64; 2],
+    cols: (u32, u32),
+    rows: (u32, u32),
+    scales: u32,
+) -> Vec<(f64, f64)> {
+    let (cw, ch) = ((cols.1 - cols.0) as usize, (rows.1 - rows.0) as usize);
+    let short = cw.min(ch);
+    if short < 16 {
+        return Vec::new();
+    }
+    let top = (1usize << short.ilog2()) / 4;
+    let bottom = (top >> scales.saturating_sub(1)).max(1);
+    let g = (spacing[0] * spacing[1]).sqrt();
+    let at = |c: usize, r: usize| f64::from(grid.at(cols.0 + c as u32, rows.0 + r as u32));
+    // Lowest and highest sample of each cell, then of each b x b block (children merged).
+    let (mut w, mut h) = (cw, ch);
+    let mut lo = vec![0.0f64; w * h];
+    let mut hi = vec![0.0f64; w * h];
+    let mut z0 = f64::INFINITY;
+    for r in 0..h {
+        for c in 0..w {
+            let v = [at(c, r), at(c + 1, r), at(c, r + 1), at(c + 1, r + 1)];
+            lo[r * w + c] = v.iter().copied().fold(f64::INFINITY, f64::min);
+            hi[r * w + c] = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            z0 = z0.min(lo[r * w + c]);
+        }
+    }
+    let mut out = Vec::new();
+    let mut b = 1;
+    loop {
+        if b >= bottom {
+            let eps = b as f64 * g;
+            let n: f64 = lo
+                .iter()
+                .zip(&hi)
+                .map(|(l, u)| ((u - z0) / eps).floor() - ((l - z0) / eps).floor() + 1.0)
+                .sum();
+            out.push((eps, n));
+        }
+        if b == top {
+            return out;
+        }
+        let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
+        let (mut nlo, mut nhi) = (
+            vec![f64::INFINITY; nw * nh],
+            vec![f64::NEG_INFINITY; nw * nh],
+        );
+        for r in 0..h {
+            for c in 0..w {
+                let j = (r / 2) * nw + c / 2;
+                nlo[j] = nlo[j].min(lo[r * w + c]);
+                nhi[j] = nhi[j].max(hi[r * w + c]);
+            }
+        }
+        (w, h, lo, hi, b) = (nw, nh, nlo, nhi, 2 * b);
+    }
+}
+
+/// Minus the least-squares slope of `ln N` against `ln eps`; `None` under 3 points.
+pub fn dimension_of(counts: &[(f64, f64)]) -> Option<f32> {
+    if counts.len() < 3 {
+        return None;
+    }
+    let n = counts.len() as f64;
+    let (mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0);
+    for &(eps, count) in counts {
+        let (x, y) = (eps.ln(), count.ln());
+        (sx, sy, sxx, sxy) = (sx + x, sy + y, sxx + x * x, sxy + x * y);
+    }
+    Some((-(n * sxy - sx * sy) / (n * sxx - sx * sx)) as f32)
+}
+
+/// The box-counting dimension of the region `cols` x `rows` (see the module docs).
+pub fn box_dimension(
+    grid: &HeightGrid<'_>,
+    spacing: [f64; 2],
+    cols: (u32, u32),
+    rows: (u32, u32),
+    scales: u32,
+) -> Option<f32> {
+    dimension_of(&box_counts(grid, spacing, cols, rows, scales))
+}
+
+/// Whether a region of dimension `d` at `level` subdivides, in a pyramid of `depth` levels.
+pub fn subdivides(p: &FractalParams, d: Option<f32>, level: u8, depth: u8) -> bool {
+    let Some(d) = d else { return false };
+    if level >= depth || d <= p.flat {
+        return false;
+    }
+    let f = ((d - p.flat) / (p.rough - p.flat)).clamp(0.0, 1.0);
+    // The coarsest level whose tiles may be leaves: 0 when flat, `depth` when rough.
+    f32::from(level) < f * f32::from(depth) - 1e-4
+}
+
+/// The leaves of the region tree over `grid` (which `shape` was made for), depth first,
+/// children in [`TileId::child`] order: together they cover the grid once.
+pub fn fractal_leaves(
+    grid: &HeightGrid<'_>,
+    spacing: [f64; 2],
+    shape: &TileShape,
+    params: &FractalParams,
+) -> Vec<FractalLeaf> {
+    let mut leaves = Vec::new();
+    let mut stack = vec![TileId::ROOT];
+    while let Some(t) = stack.pop() {
+        let span = shape.span(t);
+        let d = box_dimension(grid, spacing, span.cols, span.rows, params.scales);
+        if subdivides(params, d, t.level, shape.depth()) {
+            let mut kids: Vec<TileId> = shape.children(t).collect();
+            kids.reverse();
+            stack.extend(kids);
+        } else {
+            leaves.push(FractalLeaf {
+                tile: t,
+                dimension: d,
+            });
+        }
+    }
+    leaves
+}
+
+#[cfg(test)]
+mod tests;
