@@ -3,18 +3,27 @@
 //!
 //! **Box counting (section 2.1.1).** The surface `F` is the region's samples joined linearly
 //! (the grid's triangles). Its bounding box is cut into cubes of side `eps`: `b x b` cells
-//! across, and `eps = b * g` metres tall, where `g = sqrt(dx * dy)` is the ground spacing in
-//! metres, so that heights and ground are in the same unit and a cube is a cube (exactly so
-//! where `dx = dy`). Over each column of `b x b` cells the surface spans the heights between
-//! its lowest and highest sample (a linear surface takes its extremes at vertices), so the
-//! cubes it meets there are `floor((zmax - z0) / eps) - floor((zmin - z0) / eps) + 1`, with
-//! `z0` the bounding box's floor; `N(eps)` is their sum. The paper counts at 3 to 5 sizes;
-//! here the sizes are powers of two from a quarter of the region's shorter side down, at most
-//! [`FractalParams::scales`] of them and at least 3 (a 64-cell region uses b = 1, 2, 4, 8, 16).
-//! The dimension is minus the least-squares slope of `ln N(eps)` against `ln eps`. A plane
-//! gives 2 (tilted or not: its cubes per column do not change with scale), white noise much
-//! taller than the spacing nearly 3, and real terrain between (fractional Brownian relief
-//! with Hurst exponent H gives `3 - H`).
+//! across and `eps = b * g` metres tall, where `g = sqrt(dx * dy)` is the ground spacing in
+//! metres, so that heights and ground are in one unit and a cube is a cube (exactly so where
+//! `dx = dy`). Over each column of `b x b` cells the surface spans the heights between its
+//! lowest and highest sample (a linear surface takes its extremes at vertices). The paper
+//! stacks the cubes from the bounding box's floor `z0`, so a column meets
+//! `floor((zmax - z0) / eps) - floor((zmin - z0) / eps) + 1` of them; that depends on where
+//! the floor falls, and with relief comparable to `eps` it biases small regions (whose floor
+//! is their own lowest sample) against large ones. Here a column counts the mean of that
+//! over the stack's offset, `(zmax - zmin) / eps + 1`; `N(eps)` is the sum over columns (a
+//! column cut short by the region's edge counts in proportion to its area).
+//!
+//! The paper counts at 3 to 5 sizes; here they are `b = 1, 2, 4, ...` cells,
+//! [`FractalParams::scales`] of them (5: up to 16 cells), none over a quarter of the region's
+//! shorter side, and at least 3. The sizes are the same for every region, so that a large
+//! region's dimension is its fine-scale roughness on average, comparable with a small one's
+//! (at sizes relative to the region, a large region's columns are so much wider than its
+//! relief is tall that every region looks flat from the root). The dimension is minus the
+//! least-squares slope of `ln N(eps)` against `ln eps`. A plane gives 2, tilted or not (its
+//! cubes per column do not change with scale); white noise much taller than the spacing
+//! nearly 3; real terrain lies between (fractional Brownian relief of Hurst exponent `H`
+//! tends to `3 - H` at scales where its relief is taller than `eps`).
 //!
 //! **Region tree (section 2.1.2).** The paper splits regions into four equal quadrants while
 //! their dimension is high ("near 2.3": subdivide) and stops where it is near 2.0 (flat). The
@@ -41,8 +50,8 @@ pub struct FractalParams {
 impl Default for FractalParams {
     fn default() -> Self {
         FractalParams {
-            flat: 2.02,
-            rough: 2.12,
+            flat: 2.01,
+            rough: 2.04,
             scales: 5,
         }
     }
@@ -73,51 +82,50 @@ pub fn box_counts(
     if short < 16 {
         return Vec::new();
     }
-    let top = (1usize << short.ilog2()) / 4;
-    let bottom = (top >> scales.saturating_sub(1)).max(1);
+    let top = ((1usize << short.ilog2()) / 4).min(1 << scales.saturating_sub(1).min(16));
     let g = (spacing[0] * spacing[1]).sqrt();
     let at = |c: usize, r: usize| f64::from(grid.at(cols.0 + c as u32, rows.0 + r as u32));
     // Lowest and highest sample of each cell, then of each b x b block (children merged).
     let (mut w, mut h) = (cw, ch);
+    // Cells per column at the current size (short at the region's east and south edges).
+    let mut cells = vec![1.0f64; w * h];
     let mut lo = vec![0.0f64; w * h];
     let mut hi = vec![0.0f64; w * h];
-    let mut z0 = f64::INFINITY;
     for r in 0..h {
         for c in 0..w {
             let v = [at(c, r), at(c + 1, r), at(c, r + 1), at(c + 1, r + 1)];
             lo[r * w + c] = v.iter().copied().fold(f64::INFINITY, f64::min);
             hi[r * w + c] = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            z0 = z0.min(lo[r * w + c]);
         }
     }
     let mut out = Vec::new();
     let mut b = 1;
     loop {
-        if b >= bottom {
-            let eps = b as f64 * g;
-            let n: f64 = lo
-                .iter()
-                .zip(&hi)
-                .map(|(l, u)| ((u - z0) / eps).floor() - ((l - z0) / eps).floor() + 1.0)
-                .sum();
-            out.push((eps, n));
-        }
-        if b == top {
+        let eps = b as f64 * g;
+        let full = (b * b) as f64;
+        let n: f64 = (0..w * h)
+            .map(|i| {
+                let cubes = (hi[i] - lo[i]) / eps + 1.0;
+                cubes * cells[i] / full
+            })
+            .sum();
+        out.push((eps, n));
+        if b >= top {
             return out;
         }
         let (nw, nh) = (w.div_ceil(2), h.div_ceil(2));
-        let (mut nlo, mut nhi) = (
-            vec![f64::INFINITY; nw * nh],
-            vec![f64::NEG_INFINITY; nw * nh],
-        );
+        let mut nlo = vec![f64::INFINITY; nw * nh];
+        let mut nhi = vec![f64::NEG_INFINITY; nw * nh];
+        let mut ncells = vec![0.0f64; nw * nh];
         for r in 0..h {
             for c in 0..w {
                 let j = (r / 2) * nw + c / 2;
                 nlo[j] = nlo[j].min(lo[r * w + c]);
                 nhi[j] = nhi[j].max(hi[r * w + c]);
+                ncells[j] += cells[r * w + c];
             }
         }
-        (w, h, lo, hi, b) = (nw, nh, nlo, nhi, 2 * b);
+        (w, h, lo, hi, cells, b) = (nw, nh, nlo, nhi, ncells, 2 * b);
     }
 }
 

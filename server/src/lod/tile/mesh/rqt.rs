@@ -46,11 +46,13 @@
 //! do; patches or skirts close those cracks, as for `grid`.
 
 use super::{HeightGrid, TriMesh, area2};
-use relief_proto::tile::Edge;
 use std::collections::BinaryHeap;
 
+mod stitch;
 #[cfg(test)]
 mod tests;
+
+pub use stitch::stitch;
 
 /// Why a grid cannot be meshed by `rqt`.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
@@ -182,7 +184,7 @@ impl RqtErrors {
     }
 
     /// Row-major index of `p`.
-    fn index(&self, p: Pos) -> usize {
+    pub(super) fn index(&self, p: Pos) -> usize {
         p[1] as usize * (self.side as usize + 1) + p[0] as usize
     }
 
@@ -270,7 +272,7 @@ impl RqtErrors {
 
     /// Widest-path relaxation from the vertices in `heap` (threshold bits, index), largest
     /// first, until both inequalities of the module docs hold everywhere.
-    fn saturate(&mut self, mut heap: BinaryHeap<(u32, u32)>) {
+    pub(super) fn saturate(&mut self, mut heap: BinaryHeap<(u32, u32)>) {
         let n = self.side + 1;
         while let Some((bits, v)) = heap.pop() {
             if bits != self.thr[v as usize].to_bits() {
@@ -295,36 +297,6 @@ impl RqtErrors {
                 }
             }
         }
-    }
-
-    /// Raises the thresholds of `raises` (`[col, row]`, value) to at least their values and
-    /// re-saturates; returns whether any threshold changed. Raising keeps the mesh
-    /// restricted and within tolerance; it only adds vertices.
-    pub fn raise(&mut self, raises: impl IntoIterator<Item = (Pos, f32)>) -> bool {
-        let mut heap = BinaryHeap::new();
-        for (p, t) in raises {
-            let i = self.index(p);
-            if t > self.thr[i] {
-                self.thr[i] = t;
-                heap.push((t.to_bits(), i as u32));
-            }
-        }
-        let changed = !heap.is_empty();
-        self.saturate(heap);
-        changed
-    }
-
-    /// The positions along `edge` of the grid, west to east or north to south.
-    pub fn edge(&self, edge: Edge) -> Vec<Pos> {
-        let s = self.side;
-        (0..=s)
-            .map(|i| match edge {
-                Edge::North => [i, 0],
-                Edge::South => [i, s],
-                Edge::West => [0, i],
-                Edge::East => [s, i],
-            })
-            .collect()
     }
 
     /// The mesh at `tolerance` metres (figure 6's recursion): [`TriMesh::max_error`] is at
@@ -401,39 +373,4 @@ impl RqtErrors {
 /// The `rqt` mesh of `grid` at `tolerance` metres.
 pub fn rqt(grid: &HeightGrid<'_>, tolerance: f32) -> Result<TriMesh, RqtError> {
     Ok(RqtErrors::new(grid)?.mesh(tolerance))
-}
-
-/// Makes a row-major block of tiles (`cols` per row, all of one side, each sharing its east
-/// edge with the next tile's west edge and its south edge with the west edge of the tile
-/// `cols` further on) agree along every shared edge: each shared vertex gets the larger of
-/// its two thresholds, and each tile re-saturates, until nothing changes. Returns the number
-/// of passes.
-pub fn stitch(tiles: &mut [RqtErrors], cols: usize) -> usize {
-    let mut passes = 0;
-    loop {
-        passes += 1;
-        let mut changed = false;
-        for i in 0..tiles.len() {
-            let east = (cols > 0 && (i + 1) % cols != 0 && i + 1 < tiles.len()).then_some(i + 1);
-            let south = (i + cols < tiles.len()).then_some(i + cols);
-            for (j, mine, theirs) in [
-                (east, Edge::East, Edge::West),
-                (south, Edge::South, Edge::North),
-            ] {
-                let Some(j) = j else { continue };
-                let (a, b) = (&tiles[i], &tiles[j]);
-                let pairs: Vec<(Pos, Pos, f32)> = a
-                    .edge(mine)
-                    .into_iter()
-                    .zip(b.edge(theirs))
-                    .map(|(p, q)| (p, q, a.threshold(p).max(b.threshold(q))))
-                    .collect();
-                changed |= tiles[i].raise(pairs.iter().map(|&(p, _, t)| (p, t)));
-                changed |= tiles[j].raise(pairs.iter().map(|&(_, q, t)| (q, t)));
-            }
-        }
-        if !changed {
-            return passes;
-        }
-    }
 }

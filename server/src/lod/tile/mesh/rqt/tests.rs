@@ -3,6 +3,7 @@
 
 use super::*;
 use proptest::prelude::*;
+use relief_proto::tile::Edge;
 use std::collections::{HashMap, HashSet};
 
 /// A `(2^k + 1)^2` grid of heights from a seed: rolling hills, a few cliffs and plateaus
@@ -166,6 +167,21 @@ fn a_spike_splits_only_what_it_needs() {
     assert!(m.vertices.contains(&[37, 20]));
     assert!(m.triangles.len() < 100, "{} triangles", m.triangles.len());
     assert_eq!(e.mesh(30.0).triangles.len(), 2);
+}
+
+#[test]
+fn a_rough_65_tile_meets_every_tolerance() {
+    let z = terrain(6, 11, 25.0);
+    let g = HeightGrid::new(65, 65, &z).unwrap();
+    let e = RqtErrors::new(&g).unwrap();
+    let mut last = usize::MAX;
+    for tol in [0.0f32, 0.5, 1.0, 3.0, 10.0, 30.0, 100.0] {
+        check_mesh(&g, &e, tol);
+        check_restricted_blocks(&e, tol);
+        let n = e.triangle_count(tol);
+        assert!(n <= last, "more triangles at a larger tolerance");
+        last = n;
+    }
 }
 
 #[test]
