@@ -1,5 +1,5 @@
-//! The shared real DEMs (`/work/shared/dem/`, or `$RELIEF_DEMS`) for the mesh figures, and
-//! square crops of them.
+//! The shared real DEMs (`../shared/dem` beside the repository, as for the DEM tests, or
+//! `$RELIEF_DEMS`) for the mesh figures, and square crops of them.
 
 use relief_server::dem::{self, Dem, LoadOptions, PngOptions};
 use std::path::PathBuf;
@@ -14,7 +14,10 @@ pub const NAMES: [&str; 4] = [
 
 /// The folder of the shared DEMs.
 pub fn root() -> PathBuf {
-    std::env::var_os("RELIEF_DEMS").map_or_else(|| "/work/shared/dem".into(), PathBuf::from)
+    std::env::var_os("RELIEF_DEMS").map_or_else(
+        || PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/dem"),
+        PathBuf::from,
+    )
 }
 
 /// Loads DEM `name`: its GeoTIFF where there is one, else its 16-bit PNG with the sidecar's
