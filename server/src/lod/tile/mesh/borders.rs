@@ -15,49 +15,36 @@
 //! its own: by induction, every tile along a *line* of the pyramid (a column or row of samples
 //! on which tiles meet) takes the same points on it, whatever its level. Per-level point sets
 //! on one edge cannot work. Two consequences, both forced:
-//! - every tile corner on the line is a vertex of every tile along it, so a tile side of level
-//!   `k` carries at least the `s_k + 1` multiples of `T` in its range (the corners of the finest
-//!   tiles): a *comb* that grows coarser tiles' meshes, whatever the tolerance;
-//! - the points must be vertices of the coarsest tiles along the line, so they lie on that
-//!   level's lattice: a fine tile along a coarse line has a border as coarse as that lattice.
+//! - every tile corner on the line is a vertex of every tile along it, so a side of a level-`k`
+//!   tile carries at least the `s_k + 1` multiples of `T` in its range (the corners of the
+//!   finest tiles): a *comb*, whatever the tolerance;
+//! - the coarsest tile along a line carries the border the finest one needs there. Its points
+//!   must therefore be allowed off its own lattice ([`super::tin::tin_span`] takes fixed points
+//!   anywhere in the window), or fine tiles inherit a border as coarse as that lattice (tried:
+//!   up to 180 times their tolerance on Mt Fuji).
 //!
-//! **Relief's rule** ([`tile_borders`]). A line's *home level* `k0` is the coarsest level whose
-//! tiles meet on it; its *home segments* are the sides of the level-`k0` tiles along it. Each
-//! home segment's points are chosen once, from the samples on that segment at stride `s_k0`
-//! (plus the line's last sample), by 1D greedy insertion ([`edge_points`]) to the tolerance
-//! the caller gives the home level, starting from the segment's ends and every multiple of `T`
-//! on it. Every tile along the line takes the points inside its side; both sides of the line
-//! compute them from the same samples, so they get the same answer. Sides on the grid's outer
-//! border have no neighbour and stay free. The rule needs the finest corners on every home
-//! lattice, `s_k0 <= T` for the coarsest inner line (`k0 = 1`): `depth <= log2(T) + 1`, grids
-//! up to 8193 samples a side for `T = 64` ([`BorderError::TooDeep`] beyond).
+//! **Relief's rule** ([`tile_borders`]). The points on a line are its multiples of `T` and its
+//! ends, plus, between each two consecutive ones, the full-resolution samples that 1D greedy
+//! insertion ([`edge_points`]) keeps to the line's tolerance. Every tile along the line takes
+//! the points inside its side. The multiples of `T` cut the line into pieces that every side
+//! along it starts and ends on, so a side's points depend only on its own samples: both tiles
+//! compute them alike, and no one needs the whole line. The line's tolerance is the caller's,
+//! given the line's *home level* `k0`, the coarsest level whose tiles meet on it:
+//! - the finest level's tolerance keeps every tile within its own tolerance; coarse tiles pay
+//!   for the fine borders;
+//! - the home level's tolerance costs coarse tiles nothing beyond the comb; a level-`k` tile
+//!   along the line may then be off by up to `tol(k0)` on that side.
 //!
-//! **Cost.** Per side: one 1D insertion over at most `T + 1` samples, `O(T log T)`, recomputed
-//! by each of the two tiles (cheaper than storing it). In triangles: the comb plus the points
-//! the line's tolerance wants; `crate::lod::tile::mesh` figures (`examples/tin_figures.rs`)
-//! measure it on real DEMs.
+//! Sides on the grid's outer border have no neighbour and stay free.
+//!
+//! **Cost.** Per side: one 1D insertion over its `T * s_k + 1` samples, `O(n log n)`, done by
+//! each of the two tiles (cheaper than storing it). In triangles: the comb plus the border
+//! points the line's tolerance wants; `examples/tin_figures.rs` measures both tolerances on
+//! real DEMs.
 
-use super::tin::tin_locked;
+use super::tin::tin_span;
 use super::{HeightGrid, TriMesh};
-use relief_proto::tile::{EDGES, Edge, TileId, TileShape, TileSpan};
-
-/// Why shared borders cannot be formed.
-#[derive(Debug, thiserror::Error, PartialEq)]
-pub enum BorderError {
-    /// A line's home lattice is coarser than the finest tiles' corners on it.
-    #[error(
-        "shared borders need depth <= log2(tile size) + 1: a line of level {home} has stride \
-         {stride}, wider than the tile size {tile}"
-    )]
-    TooDeep {
-        /// The line's home level.
-        home: u8,
-        /// Samples between vertices at that level.
-        stride: u32,
-        /// Cells per tile side.
-        tile: u32,
-    },
-}
+use relief_proto::tile::{EDGES, Edge, TileId, TileShape};
 
 /// The points 1D greedy insertion keeps along a line of samples at positions `pos`
 /// (increasing) with heights `z`: the ends, the `forced` indices, and, within each segment
@@ -98,118 +85,70 @@ pub fn edge_points(pos: &[u32], z: &[f32], tolerance: f32, forced: &[usize]) -> 
     keep
 }
 
-/// Where side `edge` of a tile lies: whether its line is a column, the line's column (row),
-/// the last column (row) of the grid, the side's first and last sample along the line, and
-/// the line's last sample.
-fn side_line(shape: &TileShape, span: &TileSpan, edge: Edge) -> (bool, u32, u32, u32, u32, u32) {
-    let (w1, h1) = (shape.width() - 1, shape.height() - 1);
-    let (c, r) = (span.cols, span.rows);
-    match edge {
-        Edge::North => (false, r.0, h1, c.0, c.1, w1),
-        Edge::South => (false, r.1, h1, c.0, c.1, w1),
-        Edge::West => (true, c.0, w1, r.0, r.1, h1),
-        Edge::East => (true, c.1, w1, r.0, r.1, h1),
-    }
-}
-
 /// The shared points on each side of tile `t` (north, east, south, west, as [`EDGES`]), as
-/// vertex offsets along the side (west to east, north to south); `None` for a side on the
-/// grid's outer border, which has no neighbour and stays free. `heights` are the full grid's
-/// (row-major metres); `line_tolerance(k0)` is the tolerance, metres, of a line whose home
-/// level is `k0` (see the module docs).
+/// sample offsets from the side's first sample (west to east, north to south); `None` for a
+/// side on the grid's outer border, which has no neighbour and stays free. `grid` is the whole
+/// grid's heights; `line_tolerance(k0)` is the tolerance, metres, of a line whose home level is
+/// `k0` (see the module docs).
 pub fn tile_borders(
     shape: &TileShape,
     t: TileId,
-    heights: &[f32],
+    grid: &HeightGrid<'_>,
     line_tolerance: &dyn Fn(u8) -> f32,
-) -> Result<[Option<Vec<u32>>; 4], BorderError> {
+) -> [Option<Vec<u32>>; 4] {
     let span = shape.span(t);
-    let (w, tile) = (shape.width(), shape.tile_size());
-    let mut out: [Option<Vec<u32>>; 4] = Default::default();
-    for (slot, edge) in out.iter_mut().zip(EDGES) {
-        let (on_cols, coord, outer, first, last, end) = side_line(shape, &span, edge);
-        if coord == 0 || coord == outer {
-            continue;
+    let (c, r, tile) = (span.cols, span.rows, shape.tile_size());
+    let (w1, h1) = (shape.width() - 1, shape.height() - 1);
+    EDGES.map(|edge| {
+        // The line (a column when `on_col`), where the side lies on it, and the grid's last
+        // line that way.
+        let (on_col, line, (first, last), outer) = match edge {
+            Edge::North => (false, r.0, c, h1),
+            Edge::South => (false, r.1, c, h1),
+            Edge::West => (true, c.0, r, w1),
+            Edge::East => (true, c.1, r, w1),
+        };
+        if line == 0 || line == outer {
+            return None;
         }
         let home = (0..=shape.depth())
-            .find(|&k| coord.is_multiple_of(tile * shape.stride(k)))
+            .find(|&k| line.is_multiple_of(tile * shape.stride(k)))
             .unwrap_or(t.level);
-        let s = shape.stride(home);
-        if s > tile {
-            return Err(BorderError::TooDeep {
-                home,
-                stride: s,
-                tile,
-            });
-        }
-        let ext = tile * s;
-        let a = first / ext * ext;
-        let b = (a + ext).min(end);
-        let mut pos: Vec<u32> = (a..b).step_by(s as usize).collect();
-        pos.push(b);
-        let forced: Vec<usize> = (0..pos.len())
-            .filter(|&i| pos[i].is_multiple_of(tile) || i + 1 == pos.len())
-            .collect();
+        let pos: Vec<u32> = (first..=last).collect();
         let z: Vec<f32> = pos
             .iter()
             .map(|&p| {
-                let (c, r) = if on_cols { (coord, p) } else { (p, coord) };
-                heights[(r * w + c) as usize]
+                if on_col {
+                    grid.at(line, p)
+                } else {
+                    grid.at(p, line)
+                }
             })
             .collect();
+        let forced: Vec<usize> = (0..pos.len())
+            .filter(|&i| pos[i].is_multiple_of(tile))
+            .collect();
         let keep = edge_points(&pos, &z, line_tolerance(home), &forced);
-        let stride = span.stride;
-        let along = |p: u32| {
-            if p == last {
-                (last - first).div_ceil(stride)
-            } else {
-                (p - first) / stride
-            }
-        };
-        *slot = Some(
-            keep.into_iter()
-                .map(|i| pos[i])
-                .filter(|&p| p >= first && p <= last)
-                .map(along)
-                .collect(),
-        );
-    }
-    Ok(out)
+        Some(keep.into_iter().map(|i| i as u32).collect())
+    })
 }
 
-/// Tile `t`'s vertex heights, row-major over its `nx x ny` vertices (the grid `tin` meshes).
-pub fn tile_heights(shape: &TileShape, t: TileId, heights: &[f32]) -> Vec<f32> {
-    let span = shape.span(t);
-    let w = shape.width();
-    (0..span.vertex_count() as u32)
-        .map(|v| {
-            let (c, r) = span.vertex_pos(v);
-            heights[(r * w + c) as usize]
-        })
-        .collect()
-}
-
-/// Tile `t`'s `tin` mesh (in tile vertex coordinates) at `tolerance` metres: with shared
-/// borders when `line_tolerance` is given ([`tile_borders`]), plain otherwise.
+/// Tile `t`'s `tin` mesh at `tolerance` metres, over its lattice of `grid` (the whole grid),
+/// vertices relative to its first sample: with shared borders when `line_tolerance` is given
+/// ([`tile_borders`]), plain otherwise.
 pub fn tile_tin(
     shape: &TileShape,
     t: TileId,
-    heights: &[f32],
+    grid: &HeightGrid<'_>,
     tolerance: f32,
     line_tolerance: Option<&dyn Fn(u8) -> f32>,
-) -> Result<TriMesh, BorderError> {
+) -> TriMesh {
     let span = shape.span(t);
-    let (nx, ny) = (span.nx(), span.ny());
-    let z = tile_heights(shape, t, heights);
-    let grid = HeightGrid {
-        width: nx as usize,
-        height: ny as usize,
-        z: &z,
-    };
     let Some(lt) = line_tolerance else {
-        return Ok(super::tin::tin(&grid, tolerance, &[]));
+        return tin_span(grid, &span, tolerance, &[], [false; 4]);
     };
-    let sides = tile_borders(shape, t, heights, lt)?;
+    let (w, h) = (span.cols.1 - span.cols.0, span.rows.1 - span.rows.0);
+    let sides = tile_borders(shape, t, grid, lt);
     let mut fixed = Vec::new();
     let mut locked = [false; 4];
     for ((edge, side), lock) in EDGES.into_iter().zip(&sides).zip(&mut locked) {
@@ -217,12 +156,12 @@ pub fn tile_tin(
         *lock = true;
         fixed.extend(points.iter().map(|&i| match edge {
             Edge::North => [i, 0],
-            Edge::South => [i, ny - 1],
+            Edge::South => [i, h],
             Edge::West => [0, i],
-            Edge::East => [nx - 1, i],
+            Edge::East => [w, i],
         }));
     }
-    Ok(tin_locked(&grid, tolerance, &fixed, locked))
+    tin_span(grid, &span, tolerance, &fixed, locked)
 }
 
 #[cfg(test)]

@@ -152,10 +152,26 @@ impl Triangulation {
         }
     }
 
-    /// A triangle holding `p` (inside or on an edge), by a scan of all triangles; `None` when
-    /// `p` is a vertex already or lies outside the rectangle. For the few fixed points only:
-    /// the greedy insertion knows each candidate's triangle.
+    /// A triangle holding `p` (inside or on an edge); `None` when `p` is a vertex already or
+    /// lies outside the rectangle. A visibility walk from the newest triangle (consecutive
+    /// fixed points are near each other), which cannot cycle on a Delaunay triangulation;
+    /// bounded all the same, with a scan of every triangle behind it.
     pub fn locate(&self, p: [u32; 2]) -> Option<u32> {
+        let mut t = self.len() as u32 - 1;
+        'walk: for _ in 0..self.len() {
+            let v = self.positions(t);
+            for i in 0..3 {
+                if area2(v[i], v[(i + 1) % 3], p) < 0 {
+                    let o = self.twin[3 * t as usize + i];
+                    if o == NONE {
+                        return None;
+                    }
+                    t = o / 3;
+                    continue 'walk;
+                }
+            }
+            return self.spot(t, p).map(|_| t);
+        }
         (0..self.len() as u32).find(|&t| self.spot(t, p).is_some())
     }
 

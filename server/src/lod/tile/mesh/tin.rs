@@ -22,28 +22,39 @@
 //! the worst sample wins ties by the smallest `(row, col)`; across triangles the heap orders by
 //! error, then position, then triangle slot.
 //!
-//! Sides of the grid may be *locked* ([`tin_locked`]): their samples are never inserted, so the
+//! **Lattices.** [`tin_span`] meshes a window of a larger grid (a tile's samples) and takes as
+//! candidates only its lattice: every `stride`-th sample plus the window's last column and row,
+//! as a [`TileSpan`] lays out a tile's vertices. Fixed points may lie anywhere in the window,
+//! on the lattice or not; vertices are window-relative sample positions (so a coarse tile can
+//! carry fine border points, [`super::borders`]). The tolerance is checked at the lattice.
+//!
+//! **Locked sides.** Sides of the window may be locked: their samples are never inserted, so the
 //! fixed points are the only vertices on them. This is how neighbouring tiles meet vertex for
 //! vertex when both take the same border points; it also means the tolerance holds on a locked
 //! side only as far as its fixed points were chosen for it.
 
 use super::delaunay::Triangulation;
 use super::{HeightGrid, TriMesh, area2};
+use relief_proto::tile::TileSpan;
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
 
 /// A heap entry: error bits (non-negative `f64`, so the bits order like the values), the
-/// sample's row-major index reversed (smaller wins ties), the triangle slot reversed and the
-/// triangle's version when scanned.
-type Entry = (u64, Reverse<u64>, Reverse<u32>, u32);
+/// sample's lattice index reversed (row-major: smaller wins ties), the triangle slot reversed
+/// and the triangle's version when scanned.
+type Entry = (u64, Reverse<u32>, Reverse<u32>, u32);
 
 /// The greedy insertion's state.
 struct Greedy<'g> {
-    /// The heights.
+    /// The heights, of the whole grid the window lies in.
     grid: HeightGrid<'g>,
-    /// The triangulation so far.
+    /// The window and its lattice of candidates.
+    span: TileSpan,
+    /// Lattice columns and rows.
+    n: (u32, u32),
+    /// The triangulation so far, in window-relative positions.
     mesh: Triangulation,
-    /// Whether each sample (row-major) is a vertex already, never a candidate again.
+    /// Whether each lattice sample (row-major) is a vertex already, never a candidate again.
     is_vertex: Vec<bool>,
     /// Locked sides in [`relief_proto::tile::EDGES`] order (north, east, south, west).
     locked: [bool; 4],
@@ -61,44 +72,73 @@ struct Greedy<'g> {
 ///
 /// Panics if a fixed point lies outside the grid or the tolerance is negative or NaN.
 pub fn tin(grid: &HeightGrid<'_>, tolerance: f32, fixed: &[[u32; 2]]) -> TriMesh {
-    tin_locked(grid, tolerance, fixed, [false; 4])
+    tin_span(grid, &whole(grid), tolerance, fixed, [false; 4])
 }
 
-/// [`tin`] with the sides marked in `locked` (north, east, south, west, as
-/// [`relief_proto::tile::EDGES`]) taking no vertices but the corners and the fixed points on
-/// them: the mesh then meets any other mesh built from the same points on that side vertex for
-/// vertex. The tolerance holds in the interior; on a locked side it holds only where the fixed
-/// points were chosen to that tolerance ([`super::borders::edge_points`]).
-pub fn tin_locked(
+/// The window of all of `grid`'s samples at stride 1.
+pub fn whole(grid: &HeightGrid<'_>) -> TileSpan {
+    TileSpan {
+        cols: (0, grid.width as u32 - 1),
+        rows: (0, grid.height as u32 - 1),
+        stride: 1,
+    }
+}
+
+/// The `tin` mesh of the window `span` of `grid`, with candidates on its lattice, `fixed`
+/// points given relative to the window's first sample, and the sides marked in `locked`
+/// (north, east, south, west, as [`relief_proto::tile::EDGES`]) taking no vertices but the
+/// corners and the fixed points on them: the mesh then meets any other mesh built from the
+/// same points on that side vertex for vertex. Vertices are window-relative. The tolerance
+/// holds at every lattice sample off the locked sides; on them it holds only where the fixed
+/// points were chosen to it ([`super::borders::edge_points`]).
+///
+/// Panics if the window leaves the grid, a fixed point leaves the window, or the tolerance is
+/// negative or NaN.
+pub fn tin_span(
     grid: &HeightGrid<'_>,
+    span: &TileSpan,
     tolerance: f32,
     fixed: &[[u32; 2]],
     locked: [bool; 4],
 ) -> TriMesh {
     assert!(tolerance >= 0.0, "tolerance must be >= 0, not {tolerance}");
-    let (w, h) = (grid.width as u32, grid.height as u32);
+    assert!(
+        span.cols.1 < grid.width as u32 && span.rows.1 < grid.height as u32 && span.stride > 0,
+        "window {span:?} outside {} x {}",
+        grid.width,
+        grid.height
+    );
+    let (w, h) = (span.cols.1 - span.cols.0, span.rows.1 - span.rows.0);
+    let n = (span.nx(), span.ny());
     let mut g = Greedy {
         grid: *grid,
-        mesh: Triangulation::rectangle(w, h),
-        is_vertex: vec![false; grid.width * grid.height],
+        span: *span,
+        n,
+        mesh: Triangulation::rectangle(w + 1, h + 1),
+        is_vertex: vec![false; n.0 as usize * n.1 as usize],
         locked,
         version: Vec::new(),
         heap: BinaryHeap::new(),
         tolerance: f64::from(tolerance),
     };
-    for &[c, r] in &g.mesh.points {
-        g.is_vertex[r as usize * grid.width + c as usize] = true;
+    for i in [0, n.0 - 1] {
+        for j in [0, n.1 - 1] {
+            g.is_vertex[(j * n.0 + i) as usize] = true;
+        }
     }
     let mut fixed = fixed.to_vec();
     fixed.sort_unstable_by_key(|p| (p[1], p[0]));
     fixed.dedup();
     for p in fixed {
-        assert!(p[0] < w && p[1] < h, "fixed point {p:?} outside {w} x {h}");
-        let i = p[1] as usize * grid.width + p[0] as usize;
-        if !g.is_vertex[i] {
-            let t = g.mesh.locate(p).unwrap_or(0);
+        assert!(
+            p[0] <= w && p[1] <= h,
+            "fixed point {p:?} outside {w} x {h} cells"
+        );
+        if let Some(t) = g.mesh.locate(p) {
             g.mesh.insert(p, t);
-            g.is_vertex[i] = true;
+            if let Some(k) = g.lattice_index(p) {
+                g.is_vertex[k] = true;
+            }
         }
     }
     g.mesh.take_dirty();
@@ -116,72 +156,139 @@ pub fn tin_locked(
 impl Greedy<'_> {
     /// Inserts the worst sample until none exceeds the tolerance.
     fn run(&mut self) {
-        while let Some((_, Reverse(i), Reverse(t), ver)) = self.heap.pop() {
+        while let Some((_, Reverse(k), Reverse(t), ver)) = self.heap.pop() {
             if self.version[t as usize] != ver {
                 continue;
             }
-            let w = self.grid.width as u64;
-            let p = [(i % w) as u32, (i / w) as u32];
+            let p = [self.x(k % self.n.0), self.y(k / self.n.0)];
             self.mesh.insert(p, t);
-            self.is_vertex[i as usize] = true;
+            self.is_vertex[k as usize] = true;
             for t in self.mesh.take_dirty() {
                 self.scan(t);
             }
         }
     }
 
-    /// Whether the sample at `[c, r]` lies on a locked side.
+    /// Window-relative column of lattice column `i`.
+    fn x(&self, i: u32) -> u32 {
+        (i * self.span.stride).min(self.span.cols.1 - self.span.cols.0)
+    }
+
+    /// Window-relative row of lattice row `j`.
+    fn y(&self, j: u32) -> u32 {
+        (j * self.span.stride).min(self.span.rows.1 - self.span.rows.0)
+    }
+
+    /// The lattice index of window-relative `p`, if it is a lattice sample.
+    fn lattice_index(&self, p: [u32; 2]) -> Option<usize> {
+        let s = self.span.stride;
+        let (w, h) = (self.x(self.n.0 - 1), self.y(self.n.1 - 1));
+        let i = if p[0] == w { self.n.0 - 1 } else { p[0] / s };
+        let j = if p[1] == h { self.n.1 - 1 } else { p[1] / s };
+        (self.x(i) == p[0] && self.y(j) == p[1]).then_some((j * self.n.0 + i) as usize)
+    }
+
+    /// Whether window-relative `[c, r]` lies on a locked side.
     fn on_locked_side(&self, c: u32, r: u32) -> bool {
-        let (e, s) = (self.grid.width as u32 - 1, self.grid.height as u32 - 1);
+        let (e, s) = (self.x(self.n.0 - 1), self.y(self.n.1 - 1));
         (self.locked[0] && r == 0)
             || (self.locked[1] && c == e)
             || (self.locked[2] && r == s)
             || (self.locked[3] && c == 0)
     }
 
-    /// Finds triangle `t`'s worst sample and, when it exceeds the tolerance, queues it.
+    /// Finds triangle `t`'s worst lattice sample and, when it exceeds the tolerance, queues it.
     fn scan(&mut self, t: u32) {
         if self.version.len() <= t as usize {
             self.version.resize(t as usize + 1, 0);
         }
         self.version[t as usize] = self.version[t as usize].wrapping_add(1);
         let v = self.mesh.positions(t);
-        let z = v.map(|p| f64::from(self.grid.at(p[0], p[1])));
+        let (c0, r0) = (self.span.cols.0, self.span.rows.0);
+        let height = |p: [u32; 2]| f64::from(self.grid.at(c0 + p[0], r0 + p[1]));
+        let z = v.map(height);
         let d = area2(v[0], v[1], v[2]);
-        let r0 = v.iter().map(|p| p[1]).min().unwrap_or(0);
-        let r1 = v.iter().map(|p| p[1]).max().unwrap_or(0);
-        let mut best: Option<(f64, u32, u32)> = None;
-        for r in r0..=r1 {
-            let Some((c0, c1)) = row_span(v, r) else {
+        let s = self.span.stride;
+        let y0 = v.iter().map(|p| p[1]).min().unwrap_or(0);
+        let y1 = v.iter().map(|p| p[1]).max().unwrap_or(0);
+        let mut best: Option<(f64, u32)> = None;
+        let mut j = y0.div_ceil(s);
+        while j < self.n.1 && self.y(j) <= y1 {
+            let r = self.y(j);
+            j += 1;
+            let Some((lo, hi)) = row_span(v, r) else {
                 continue;
             };
-            for c in c0..=c1 {
-                let i = r as usize * self.grid.width + c as usize;
-                if self.is_vertex[i] || self.on_locked_side(c, r) {
+            let mut i = lo.div_ceil(s);
+            while i < self.n.0 && self.x(i) <= hi {
+                let (c, k) = (self.x(i), (j - 1) * self.n.0 + i);
+                i += 1;
+                if self.is_vertex[k as usize] || self.on_locked_side(c, r) {
                     continue;
                 }
-                let zs = f64::from(self.grid.z[i]);
-                // Sum of A_k (z_k - z) over the sub-triangle areas A_k: exact zero on a plane.
                 let p = [c, r];
+                let zs = height(p);
+                // Sum of A_k (z_k - z) over the sub-triangle areas A_k: exact zero on a plane.
                 let a = [
                     area2(v[1], v[2], p),
                     area2(v[2], v[0], p),
                     area2(v[0], v[1], p),
                 ];
-                let num: f64 = (0..3).map(|k| a[k] as f64 * (z[k] - zs)).sum();
+                let num: f64 = (0..3).map(|m| a[m] as f64 * (z[m] - zs)).sum();
                 let err = num.abs() / d as f64;
                 if best.is_none_or(|b| err > b.0) {
-                    best = Some((err, c, r));
+                    best = Some((err, k));
                 }
             }
         }
-        let Some((err, c, r)) = best.filter(|b| b.0 > self.tolerance) else {
+        let Some((err, k)) = best.filter(|b| b.0 > self.tolerance) else {
             return;
         };
-        let i = u64::from(r) * self.grid.width as u64 + u64::from(c);
         let ver = self.version[t as usize];
-        self.heap.push((err.to_bits(), Reverse(i), Reverse(t), ver));
+        self.heap.push((err.to_bits(), Reverse(k), Reverse(t), ver));
     }
+}
+
+/// The largest vertical distance, metres, between `mesh` (vertices relative to the window's
+/// first sample) and `grid` at the lattice samples of window `span`: what [`tin_span`]
+/// promises to keep within its tolerance. Brute force, as [`TriMesh::max_error`]: each
+/// triangle tests the lattice samples of its bounding box.
+pub fn lattice_error(mesh: &TriMesh, grid: &HeightGrid<'_>, span: &TileSpan) -> f32 {
+    let (c0, r0, s) = (span.cols.0, span.rows.0, span.stride);
+    let (w, h) = (span.cols.1 - c0, span.rows.1 - r0);
+    let lattice = |lo: u32, hi: u32, end: u32| {
+        (lo.div_ceil(s)..=hi / s)
+            .map(move |i| i * s)
+            .chain((hi == end && !end.is_multiple_of(s)).then_some(end))
+    };
+    let mut worst = 0.0f64;
+    for t in &mesh.triangles {
+        let v = t.map(|i| mesh.vertices[i as usize]);
+        let z = v.map(|p| f64::from(grid.at(c0 + p[0], r0 + p[1])));
+        let d = area2(v[0], v[1], v[2]) as f64;
+        let (x0, x1) = (v.iter().map(|p| p[0]).min(), v.iter().map(|p| p[0]).max());
+        let (y0, y1) = (v.iter().map(|p| p[1]).min(), v.iter().map(|p| p[1]).max());
+        let (Some(x0), Some(x1), Some(y0), Some(y1)) = (x0, x1, y0, y1) else {
+            continue;
+        };
+        for y in lattice(y0, y1, h) {
+            for x in lattice(x0, x1, w) {
+                let p = [x, y];
+                let a = [
+                    area2(v[1], v[2], p),
+                    area2(v[2], v[0], p),
+                    area2(v[0], v[1], p),
+                ];
+                if a.iter().any(|&a| a < 0) {
+                    continue;
+                }
+                let zs = f64::from(grid.at(c0 + x, r0 + y));
+                let m: f64 = (0..3).map(|k| a[k] as f64 * (z[k] - zs)).sum();
+                worst = worst.max(m.abs() / d);
+            }
+        }
+    }
+    worst as f32
 }
 
 /// The columns of row `r` inside or on the counter-clockwise triangle `v` (exact integer

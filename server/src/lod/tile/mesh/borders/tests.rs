@@ -2,8 +2,10 @@
 //! vertex for vertex over a whole pyramid.
 
 use super::*;
+use crate::lod::tile::mesh::tin::lattice_error;
 use crate::lod::tile::mesh::tin::tests::assert_delaunay;
 use proptest::prelude::*;
+use relief_proto::tile::TileSpan;
 
 /// A deterministic rough terrain over `w x h` samples.
 fn terrain(w: u32, h: u32, seed: u32) -> Vec<f32> {
@@ -64,7 +66,7 @@ fn global(shape: &TileShape, t: TileId, m: &TriMesh) -> Vec<[u32; 2]> {
     let span = shape.span(t);
     m.vertices
         .iter()
-        .map(|v| [span.col(v[0]), span.row(v[1])])
+        .map(|v| [span.cols.0 + v[0], span.rows.0 + v[1]])
         .collect()
 }
 
@@ -81,8 +83,8 @@ fn shared(a: &TileSpan, b: &TileSpan) -> Option<impl Fn(&[u32; 2]) -> bool + use
     Some(move |p: &[u32; 2]| p[axis] == at && (lo..=hi).contains(&p[1 - axis]))
 }
 
-/// Every pair of tiles of the same or adjacent levels that share a segment, with the
-/// vertices each has on it, for meshes from `mesh`.
+/// Pairs of tiles of the same or adjacent levels that share a segment, and how many of them
+/// have different vertices on it, for the meshes `mesh` makes.
 fn mismatches(shape: &TileShape, mesh: impl Fn(TileId) -> TriMesh) -> (usize, usize) {
     let tiles: Vec<TileId> = (0..shape.tile_count())
         .filter_map(|i| shape.tile(i))
@@ -111,83 +113,69 @@ fn mismatches(shape: &TileShape, mesh: impl Fn(TileId) -> TriMesh) -> (usize, us
 
 #[test]
 fn tiles_of_the_same_and_adjacent_levels_meet_vertex_for_vertex() {
-    // 121 x 90 with 8-cell tiles: depth 4, narrower last cells east and south.
-    let (w, h) = (121u32, 90u32);
-    let z = terrain(w, h, 5);
-    let shape = TileShape::new(w, h, 8).unwrap();
-    assert_eq!(shape.depth(), 4);
-    let depth = shape.depth();
-    let tol = |k: u8| 0.5 * f32::from(1u8 << (depth - k));
-    let shared_mesh = |t: TileId| {
-        let m = tile_tin(&shape, t, &z, tol(t.level), Some(&tol)).unwrap();
-        let sp = shape.span(t);
-        assert_delaunay(&m, sp.nx() as usize, sp.ny() as usize);
-        m
-    };
-    let (pairs, bad) = mismatches(&shape, shared_mesh);
-    assert!(pairs > 500, "{pairs} pairs");
-    assert_eq!(bad, 0, "{bad} of {pairs} shared sides differ");
-    // Plain tins do not meet: the check is not vacuous.
-    let plain = |t: TileId| tile_tin(&shape, t, &z, tol(t.level), None).unwrap();
-    assert!(mismatches(&shape, plain).1 > pairs / 4);
-}
-
-#[test]
-fn sectors_of_one_level_keep_the_tolerance() {
-    // Depth 1: every inner line is at home on the finest level, at full resolution, so the
-    // shared borders cost the tolerance nothing.
-    let (w, h) = (33u32, 30u32);
-    let z = terrain(w, h, 9);
-    let shape = TileShape::new(w, h, 16).unwrap();
-    assert_eq!(shape.depth(), 1);
-    for tol in [0.0f32, 0.7, 3.0] {
-        let (nx, ny) = shape.level_dims(1);
-        for (x, y) in (0..nx).flat_map(|x| (0..ny).map(move |y| (x, y))) {
-            let t = TileId { level: 1, x, y };
-            let m = tile_tin(&shape, t, &z, tol, Some(&|_| tol)).unwrap();
-            let zt = tile_heights(&shape, t, &z);
-            let sp = shape.span(t);
-            let g = HeightGrid::new(sp.nx() as usize, sp.ny() as usize, &zt).unwrap();
-            assert!(
-                m.max_error(&g) <= tol,
-                "{t:?} at {tol}: {}",
-                m.max_error(&g)
-            );
+    // 121 x 90 with 8-cell tiles: depth 4, narrower last cells east and south. 65 x 65 with
+    // 4-cell tiles: depth 4, and the midlines' level-1 lattice (stride 8) is wider than a tile.
+    for (w, h, tile) in [(121u32, 90u32, 8u32), (65, 65, 4)] {
+        let z = terrain(w, h, 5);
+        let grid = HeightGrid::new(w as usize, h as usize, &z).unwrap();
+        let shape = TileShape::new(w, h, tile).unwrap();
+        let depth = shape.depth();
+        assert_eq!(depth, 4);
+        let tol = |k: u8| 0.5 * f32::from(1u8 << (depth - k));
+        let finest = |_: u8| tol(depth);
+        for line in [&tol as &dyn Fn(u8) -> f32, &finest] {
+            let mesh = |t: TileId| {
+                let m = tile_tin(&shape, t, &grid, tol(t.level), Some(line));
+                let sp = shape.span(t);
+                let (w, h) = (sp.cols.1 - sp.cols.0 + 1, sp.rows.1 - sp.rows.0 + 1);
+                assert_delaunay(&m, w as usize, h as usize);
+                m
+            };
+            let (pairs, bad) = mismatches(&shape, mesh);
+            assert!(pairs > 500, "{pairs} pairs");
+            assert_eq!(bad, 0, "{w} x {h}: {bad} of {pairs} shared sides differ");
         }
+        // Plain tins do not meet: the check is not vacuous.
+        let (pairs, bad) = mismatches(&shape, |t| tile_tin(&shape, t, &grid, tol(t.level), None));
+        assert!(bad > pairs / 4, "{bad} of {pairs}");
     }
 }
 
 #[test]
-fn the_comb_holds_every_finest_corner_and_deep_pyramids_are_refused() {
+fn lines_at_the_finest_tolerance_keep_every_tile_within_its_own() {
+    let (w, h) = (97u32, 65u32);
+    let z = terrain(w, h, 9);
+    let grid = HeightGrid::new(w as usize, h as usize, &z).unwrap();
+    let shape = TileShape::new(w, h, 16).unwrap();
+    let depth = shape.depth();
+    let tol = |k: u8| 0.3 * f32::from(1u8 << (depth - k));
+    for t in (0..shape.tile_count()).filter_map(|i| shape.tile(i)) {
+        let m = tile_tin(&shape, t, &grid, tol(t.level), Some(&|_| tol(depth)));
+        let e = lattice_error(&m, &grid, &shape.span(t));
+        assert!(e <= tol(t.level), "{t:?}: {e} > {}", tol(t.level));
+    }
+}
+
+#[test]
+fn the_comb_holds_every_finest_corner() {
     let (w, h) = (65u32, 65u32);
     let z = vec![1.0f32; (w * h) as usize];
+    let grid = HeightGrid::new(w as usize, h as usize, &z).unwrap();
     let shape = TileShape::new(w, h, 16).unwrap();
+    assert_eq!(shape.depth(), 2);
     // A flat level-1 tile: its inner sides keep only the finest tiles' corners (every 16
-    // samples, every 8 vertices at stride 2); its outer sides stay free.
+    // samples); its outer sides stay free.
     let t = TileId {
         level: 1,
         x: 0,
         y: 0,
     };
-    let b = tile_borders(&shape, t, &z, &|_| 1.0).unwrap();
-    assert_eq!(b, [None, Some(vec![0, 8, 16]), Some(vec![0, 8, 16]), None]);
-    // 4-cell tiles over 65 samples: depth 4, the midline's lattice (stride 8) misses corners.
-    let deep = TileShape::new(w, h, 4).unwrap();
+    let b = tile_borders(&shape, t, &grid, &|_| 1.0);
     assert_eq!(
-        tile_borders(
-            &deep,
-            TileId {
-                level: 4,
-                x: 7,
-                y: 0
-            },
-            &z,
-            &|_| 1.0
-        ),
-        Err(BorderError::TooDeep {
-            home: 1,
-            stride: 8,
-            tile: 4
-        })
+        b,
+        [None, Some(vec![0, 16, 32]), Some(vec![0, 16, 32]), None]
     );
+    // Corners and two comb points, all on the border: 2n - b - 2 = 4 triangles.
+    let m = tile_tin(&shape, t, &grid, 1.0, Some(&|_| 1.0));
+    assert_eq!((m.vertices.len(), m.triangles.len()), (6, 4));
 }

@@ -85,7 +85,7 @@ fn locked_sides_take_only_their_fixed_points() {
     let z = terrain(w, h, 11);
     let g = HeightGrid::new(w, h, &z).unwrap();
     let fixed = [[7, 0], [20, 5], [3, 12], [0, 4], [10, 6]];
-    let m = tin_locked(&g, 0.1, &fixed, [true, true, true, true]);
+    let m = tin_span(&g, &whole(&g), 0.1, &fixed, [true; 4]);
     assert_delaunay(&m, w, h);
     let on_side = |p: &[u32; 2]| p[0] == 0 || p[1] == 0 || p[0] == 20 || p[1] == 12;
     let mut side: Vec<[u32; 2]> = m.vertices.iter().copied().filter(on_side).collect();
@@ -107,6 +107,46 @@ fn locked_sides_take_only_their_fixed_points() {
     let free = tin(&g, 0.1, &fixed);
     assert!(free.vertices.iter().filter(|p| on_side(p)).count() > side.len());
     assert!(free.max_error(&g) <= 0.1);
+}
+
+#[test]
+fn a_window_meshes_its_lattice_and_takes_fixed_points_off_it() {
+    // Columns 3..=26 (last cell 3 wide at stride 4), rows 5..=18 (last cell 1 wide).
+    let (w, h) = (30usize, 20usize);
+    let z = terrain(w, h, 13);
+    let g = HeightGrid::new(w, h, &z).unwrap();
+    let span = TileSpan {
+        cols: (3, 26),
+        rows: (5, 18),
+        stride: 4,
+    };
+    let fixed = [[5, 0], [23, 7], [9, 9]];
+    for tol in [0.0f32, 1.0, 4.0] {
+        let free = tin_span(&g, &span, tol, &fixed, [false; 4]);
+        assert_delaunay(&free, 24, 14);
+        assert!(lattice_error(&free, &g, &span) <= tol);
+        // Locked north: only the corners and the fixed point there; the tolerance is not
+        // promised on that side.
+        let m = tin_span(&g, &span, tol, &fixed, [true, false, false, false]);
+        assert_delaunay(&m, 24, 14);
+        for m in [&free, &m] {
+            for p in &m.vertices {
+                let on_lattice = |v: u32, end: u32| v.is_multiple_of(4) || v == end;
+                assert!(fixed.contains(p) || (on_lattice(p[0], 23) && on_lattice(p[1], 13)));
+            }
+            for p in &fixed {
+                assert!(m.vertices.contains(p));
+            }
+        }
+        assert!(
+            m.vertices
+                .iter()
+                .all(|p| p[1] != 0 || [0, 5, 23].contains(&p[0]))
+        );
+    }
+    // At tolerance 0 every lattice sample is exact.
+    let m = tin_span(&g, &span, 0.0, &[], [false; 4]);
+    assert_eq!(lattice_error(&m, &g, &span), 0.0);
 }
 
 fn dem() -> impl Strategy<Value = (usize, usize, Vec<f32>)> {
