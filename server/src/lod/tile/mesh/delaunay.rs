@@ -39,6 +39,8 @@ pub struct Triangulation {
     dirty: Vec<u32>,
     /// Whether each triangle is already in `dirty` (no duplicates).
     is_dirty: Vec<bool>,
+    /// The edges left to check after an insertion, kept to reuse its allocation.
+    stack: Vec<u32>,
 }
 
 /// The next half-edge around the same triangle.
@@ -80,6 +82,7 @@ impl Triangulation {
             twin: Vec::new(),
             dirty: Vec::new(),
             is_dirty: Vec::new(),
+            stack: Vec::new(),
         };
         // NW SW SE, then NW SE NE; half-edge 2 (SE -> NW) is the twin of half-edge 3.
         d.set(0, [0, 2, 3], [NONE, NONE, NONE]);
@@ -105,12 +108,14 @@ impl Triangulation {
         self.corners(t).map(|v| self.points[v as usize])
     }
 
-    /// The triangles written since the last call, each once, in the order first written.
-    pub fn take_dirty(&mut self) -> Vec<u32> {
+    /// Moves the triangles written since the last call into `out` (cleared first), each once,
+    /// in the order first written.
+    pub fn take_dirty(&mut self, out: &mut Vec<u32>) {
         for &t in &self.dirty {
             self.is_dirty[t as usize] = false;
         }
-        std::mem::take(&mut self.dirty)
+        out.clear();
+        std::mem::swap(out, &mut self.dirty);
     }
 
     /// Writes triangle `t` (a new slot when `t == len()`) with vertices `v` and the twins
@@ -181,7 +186,7 @@ impl Triangulation {
         let spot = self.spot(t, p);
         let v = self.points.len() as u32;
         self.points.push(p);
-        let mut stack = Vec::with_capacity(16);
+        let mut stack = std::mem::take(&mut self.stack);
         match spot {
             Some(Spot::Inside) => self.split_triangle(t, v, &mut stack),
             Some(Spot::Edge(e)) => self.split_edge(e, v, &mut stack),
@@ -190,6 +195,7 @@ impl Triangulation {
         while let Some(e) = stack.pop() {
             self.legalize(e, &mut stack);
         }
+        self.stack = stack;
         v
     }
 

@@ -10,12 +10,14 @@
 //! which is clockwise in `(col, row)` image axes.
 //!
 //! Mesh kinds and their helpers:
-//! - [`tin`]: paper 003's greedy-insertion Delaunay TIN to a tolerance, over [`delaunay`];
+//! - [`tin`]: paper 003's greedy-insertion Delaunay TIN to a tolerance, over [`delaunay`]
+//!   and [`queue`];
 //! - [`borders`]: paper 003's shared border points, so that `tin` tiles of the same and
 //!   adjacent levels meet vertex for vertex.
 
 pub mod borders;
 mod delaunay;
+mod queue;
 pub mod tin;
 
 /// Heights on a regular grid, row-major, metres.

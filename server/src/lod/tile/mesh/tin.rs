@@ -13,9 +13,9 @@
 //!    made Delaunay again by Lawson flips ([`super::delaunay`]), and only the triangles the
 //!    insertion created are scanned again (4b).
 //!
-//! Each triangle's worst sample sits in a max-heap with lazy deletion (an entry is dropped when
-//! its triangle was rewritten since), so an insertion costs the area of the triangles it
-//! changes plus `O(log n)`, as in Garland and Heckbert's "Fast polygonal approximation of
+//! Each triangle's worst sample sits in an indexed max-heap ([`super::queue`]; an entry is
+//! updated in place when its triangle is rewritten), so an insertion costs the area of the
+//! triangles it changes plus `O(log n)`, as in Garland and Heckbert's "Fast polygonal approximation of
 //! terrains and height fields" (1995) and in mapbox's delatin.
 //!
 //! Determinism: the same grid, tolerance and fixed points give the same mesh. Within a triangle
@@ -34,15 +34,9 @@
 //! side only as far as its fixed points were chosen for it.
 
 use super::delaunay::Triangulation;
+use super::queue::Queue;
 use super::{HeightGrid, TriMesh, area2};
 use relief_proto::tile::TileSpan;
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
-
-/// A heap entry: error bits (non-negative `f64`, so the bits order like the values), the
-/// sample's lattice index reversed (row-major: smaller wins ties), the triangle slot reversed
-/// and the triangle's version when scanned.
-type Entry = (u64, Reverse<u32>, Reverse<u32>, u32);
 
 /// The greedy insertion's state.
 struct Greedy<'g> {
@@ -58,10 +52,10 @@ struct Greedy<'g> {
     is_vertex: Vec<bool>,
     /// Locked sides in [`relief_proto::tile::EDGES`] order (north, east, south, west).
     locked: [bool; 4],
-    /// Bumped each time a triangle is rescanned, to drop stale heap entries.
-    version: Vec<u32>,
     /// Worst sample of each triangle whose error exceeds the tolerance.
-    heap: BinaryHeap<Entry>,
+    queue: Queue,
+    /// The triangles an insertion rewrote, buffer reused from one insertion to the next.
+    dirty: Vec<u32>,
     /// The vertical tolerance, metres.
     tolerance: f64,
 }
@@ -117,8 +111,8 @@ pub fn tin_span(
         mesh: Triangulation::rectangle(w + 1, h + 1),
         is_vertex: vec![false; n.0 as usize * n.1 as usize],
         locked,
-        version: Vec::new(),
-        heap: BinaryHeap::new(),
+        queue: Queue::default(),
+        dirty: Vec::new(),
         tolerance: f64::from(tolerance),
     };
     for i in [0, n.0 - 1] {
@@ -141,7 +135,7 @@ pub fn tin_span(
             }
         }
     }
-    g.mesh.take_dirty();
+    g.mesh.take_dirty(&mut g.dirty);
     for t in 0..g.mesh.len() as u32 {
         g.scan(t);
     }
@@ -156,16 +150,16 @@ pub fn tin_span(
 impl Greedy<'_> {
     /// Inserts the worst sample until none exceeds the tolerance.
     fn run(&mut self) {
-        while let Some((_, Reverse(k), Reverse(t), ver)) = self.heap.pop() {
-            if self.version[t as usize] != ver {
-                continue;
-            }
+        while let Some((t, k)) = self.queue.peek() {
             let p = [self.x(k % self.n.0), self.y(k / self.n.0)];
             self.mesh.insert(p, t);
             self.is_vertex[k as usize] = true;
-            for t in self.mesh.take_dirty() {
+            let mut dirty = std::mem::take(&mut self.dirty);
+            self.mesh.take_dirty(&mut dirty);
+            for &t in &dirty {
                 self.scan(t);
             }
+            self.dirty = dirty;
         }
     }
 
@@ -188,64 +182,61 @@ impl Greedy<'_> {
         (self.x(i) == p[0] && self.y(j) == p[1]).then_some((j * self.n.0 + i) as usize)
     }
 
-    /// Whether window-relative `[c, r]` lies on a locked side.
-    fn on_locked_side(&self, c: u32, r: u32) -> bool {
-        let (e, s) = (self.x(self.n.0 - 1), self.y(self.n.1 - 1));
-        (self.locked[0] && r == 0)
-            || (self.locked[1] && c == e)
-            || (self.locked[2] && r == s)
-            || (self.locked[3] && c == 0)
-    }
-
     /// Finds triangle `t`'s worst lattice sample and, when it exceeds the tolerance, queues it.
     fn scan(&mut self, t: u32) {
-        if self.version.len() <= t as usize {
-            self.version.resize(t as usize + 1, 0);
-        }
-        self.version[t as usize] = self.version[t as usize].wrapping_add(1);
         let v = self.mesh.positions(t);
-        let (c0, r0) = (self.span.cols.0, self.span.rows.0);
-        let height = |p: [u32; 2]| f64::from(self.grid.at(c0 + p[0], r0 + p[1]));
-        let z = v.map(height);
+        let (c0, r0) = (self.span.cols.0 as usize, self.span.rows.0 as usize);
+        let (gw, z_all) = (self.grid.width, self.grid.z);
+        let z = v.map(|p| f64::from(z_all[(r0 + p[1] as usize) * gw + c0 + p[0] as usize]));
         let d = area2(v[0], v[1], v[2]);
         let s = self.span.stride;
+        let (xe, ye) = (self.x(self.n.0 - 1), self.y(self.n.1 - 1));
+        // Sub-triangle areas A_k grow by `step[k]` from one lattice column to the next.
+        let edges = [(v[1], v[2]), (v[2], v[0]), (v[0], v[1])];
+        // Areas are integers, exact in f64 (below 2^53).
+        let step = edges.map(|(a, b)| ((i64::from(b[1]) - i64::from(a[1])) * i64::from(s)) as f64);
         let y0 = v.iter().map(|p| p[1]).min().unwrap_or(0);
         let y1 = v.iter().map(|p| p[1]).max().unwrap_or(0);
+        // Largest |sum A_k (z_k - z)| (exact zero on a plane) and its lattice index.
         let mut best: Option<(f64, u32)> = None;
         let mut j = y0.div_ceil(s);
         while j < self.n.1 && self.y(j) <= y1 {
             let r = self.y(j);
+            let row = j * self.n.0;
             j += 1;
+            if (self.locked[0] && r == 0) || (self.locked[2] && r == ye) {
+                continue;
+            }
             let Some((lo, hi)) = row_span(v, r) else {
                 continue;
             };
+            let zrow = &z_all[(r0 + r as usize) * gw + c0..];
             let mut i = lo.div_ceil(s);
+            let mut a = edges.map(|(p, q)| area2(p, q, [i * s, r]) as f64);
             while i < self.n.0 && self.x(i) <= hi {
-                let (c, k) = (self.x(i), (j - 1) * self.n.0 + i);
-                i += 1;
-                if self.is_vertex[k as usize] || self.on_locked_side(c, r) {
-                    continue;
+                let c = self.x(i);
+                if c != i * s {
+                    // The narrower last cell.
+                    a = edges.map(|(p, q)| area2(p, q, [c, r]) as f64);
                 }
-                let p = [c, r];
-                let zs = height(p);
-                // Sum of A_k (z_k - z) over the sub-triangle areas A_k: exact zero on a plane.
-                let a = [
-                    area2(v[1], v[2], p),
-                    area2(v[2], v[0], p),
-                    area2(v[0], v[1], p),
-                ];
-                let num: f64 = (0..3).map(|m| a[m] as f64 * (z[m] - zs)).sum();
-                let err = num.abs() / d as f64;
-                if best.is_none_or(|b| err > b.0) {
-                    best = Some((err, k));
+                let k = row + i;
+                let locked = (self.locked[3] && c == 0) || (self.locked[1] && c == xe);
+                if !self.is_vertex[k as usize] && !locked {
+                    let zs = f64::from(zrow[c as usize]);
+                    let num = (a[0] * (z[0] - zs) + a[1] * (z[1] - zs) + a[2] * (z[2] - zs)).abs();
+                    if best.is_none_or(|b| num > b.0) {
+                        best = Some((num, k));
+                    }
+                }
+                i += 1;
+                for (a, st) in a.iter_mut().zip(step) {
+                    *a += st;
                 }
             }
         }
-        let Some((err, k)) = best.filter(|b| b.0 > self.tolerance) else {
-            return;
-        };
-        let ver = self.version[t as usize];
-        self.heap.push((err.to_bits(), Reverse(k), Reverse(t), ver));
+        let worst = best.map(|(num, k)| (num / d as f64, k));
+        self.queue
+            .set(t, worst.filter(|&(err, _)| err > self.tolerance));
     }
 }
 
