@@ -6,12 +6,11 @@
 //! Each PNG is read with its JSON sidecar (`offset`, `scale`, `spacing_m_xy`), voids filled
 //! by the repository's reader. Figures:
 //! - `paper`: paper 003's 41 x 41 example redone on real ground (its heights are not
-//!   published): 41 x 41 crops, the tolerance that gives about 475 plain triangles, then the
-//!   same crop with its four sides' points fixed (all samples, as the paper's 475 -> 636
-//!   suggests; and 1D greedy points to the same tolerance);
+//!   published): 41 x 41 crops, triangles at tolerance 0, the tolerance that gives about 475
+//!   plain triangles, and the same crop with every sample of its four sides fixed;
 //! - `sectors`: the paper's setting, one level of 65 x 65 tiles at stride 1: triangles of the
-//!   plain `tin`, with shared borders (1D greedy points on inner sides), and with every inner
-//!   border sample fixed;
+//!   plain `tin`, with the inner sides' points fixed at the finest tolerance for every LOD
+//!   (the paper's rule), and with every inner border sample fixed;
 //! - `pyramid`: Relief's pyramid (`T = 64`) over the largest `64 * 2^k + 1` crop, tolerances
 //!   doubling per level up from the finest: triangles per level, plain and with
 //!   [`borders::tile_borders`] (lines held to their home level's tolerance, or to the
@@ -122,20 +121,21 @@ fn paper(d: &Heights) {
         }
         let tol = hi;
         let zero = tris(0.0);
-        let locked = |f: &[[u32; 2]]| tin_span(&g, &whole(&g), tol, f, [true; 4]);
-        let all = locked(&sector_borders(&z, n, [true; 4], tol, true));
-        let one = locked(&sector_borders(&z, n, [true; 4], tol, false));
+        let all = sector_borders(&z, n, [true; 4], tol, true);
+        let all = tin_span(&g, &whole(&g), tol, &all, [true; 4]);
         println!(
-            "| {} ({c0},{r0}) | {zero} | {tol:.2} | {} | {} | {} |",
+            "| {} ({c0},{r0}) | {zero} | {tol:.2} | {} | {} |",
             d.name,
             tris(tol),
             all.triangles.len(),
-            one.triangles.len()
         );
     }
 }
 
-/// Sum of triangles over a one-level cut of the crop into `n x n` sectors at stride 1.
+/// Sum of triangles over a one-level cut of the crop into `n x n` sectors at stride 1: plain
+/// (each side's 1D points at the tolerance: neighbours at one tolerance already agree), with
+/// the inner sides' points fixed at the finest tolerance (`tols[0]`, the paper's rule: every
+/// LOD of a sector keeps the same border points), and with every inner border sample fixed.
 fn sectors(d: &Heights, tols: &[f32]) {
     let n = 65;
     let (tx, ty) = ((d.w - 1) / (n - 1), (d.h - 1) / (n - 1));
@@ -147,7 +147,7 @@ fn sectors(d: &Heights, tols: &[f32]) {
             let shared = [y > 0, x + 1 < tx, y + 1 < ty, x > 0];
             sum[0] += tin(&g, tol, &[]).triangles.len();
             for (k, all) in [(1, false), (2, true)] {
-                let f = sector_borders(&z, n, shared, tol, all);
+                let f = sector_borders(&z, n, shared, tols[0], all);
                 sum[k] += tin_span(&g, &whole(&g), tol, &f, shared).triangles.len();
             }
         }

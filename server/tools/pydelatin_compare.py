@@ -65,6 +65,7 @@ def main():
     print("| DEM | crops | tol m | Relief tris | pydelatin tris | Relief/pydelatin "
           "| Relief max err | pydelatin max err | Relief ms | pydelatin ms |")
     print("|---|---|---|---|---|---|---|---|---|---|")
+    grand = {"rt": 0, "pt": 0, "rms": 0.0, "pms": 0.0, "fewer": 0, "more": 0}
     with tempfile.TemporaryDirectory() as tmp:
         for png in dems:
             w, h = dem_size(png)
@@ -95,9 +96,16 @@ def main():
                         tot["pe"] = max(tot["pe"], p["max_error"])
                         tot["rms"] += r["ms"]
                         tot["pms"] += ms
+                    for key in ("rt", "pt", "rms", "pms"):
+                        grand[key] += tot[key]
+                    grand["fewer"] += tot["rt"] < tot["pt"]
+                    grand["more"] += tot["rt"] > tot["pt"]
                     print(f"| {name} | {len(raws)} x {n}^2 | {tol:g} | {tot['rt']} | {tot['pt']} "
                           f"| {tot['rt'] / tot['pt']:.3f} | {tot['re']:.3f} | {tot['pe']:.3f} "
                           f"| {tot['rms']:.1f} | {tot['pms']:.1f} |", flush=True)
+    print(f"| all | | | {grand['rt']} | {grand['pt']} | {grand['rt'] / grand['pt']:.4f} | | "
+          f"| {grand['rms']:.0f} | {grand['pms']:.0f} |")
+    print(f"\nRelief fewer triangles in {grand['fewer']} rows, more in {grand['more']}.")
 
 
 if __name__ == "__main__":

@@ -10,8 +10,8 @@
 //! which is clockwise in `(col, row)` image axes.
 //!
 //! Mesh kinds and their helpers:
-//! - [`tin`]: paper 003's greedy-insertion Delaunay TIN to a tolerance, over [`delaunay`]
-//!   and [`queue`];
+//! - [`tin`]: paper 003's greedy-insertion Delaunay TIN to a tolerance, over `delaunay`
+//!   and `queue`;
 //! - [`borders`]: paper 003's shared border points, so that `tin` tiles of the same and
 //!   adjacent levels meet vertex for vertex.
 

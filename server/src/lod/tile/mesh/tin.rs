@@ -4,23 +4,33 @@
 //!
 //! The paper's algorithm, step by step:
 //! 1. `T_0` triangulates the set `I u H`: the grid's four corners (the convex hull `H`) and the
-//!    points of particular interest `I`, here the caller's fixed points (shared border points,
-//!    [`super::borders`]), inserted in sorted order;
+//!    points of particular interest `I`, which the paper says include the points of the
+//!    domain's boundary and of edges shared with neighbours. Here: the caller's fixed points
+//!    (shared border points, [`super::borders`]), and on each free side the points 1D greedy
+//!    insertion keeps along it to the tolerance ([`super::borders::edge_points`]);
 //! 2. each triangle finds the sample inside it with the largest vertical deviation from its
 //!    plane (the paper measures the distance to the plane along z: `|F_k(x, y) - F(x, y)|`);
 //! 3. the largest deviation over all triangles is `Delta_k`;
 //! 4. while `Delta_k` exceeds the tolerance, that sample is inserted (4a), the triangulation is
-//!    made Delaunay again by Lawson flips ([`super::delaunay`]), and only the triangles the
+//!    made Delaunay again by Lawson flips (`delaunay`), and only the triangles the
 //!    insertion created are scanned again (4b).
 //!
-//! Each triangle's worst sample sits in an indexed max-heap ([`super::queue`]; an entry is
-//! updated in place when its triangle is rewritten), so an insertion costs the area of the
-//! triangles it changes plus `O(log n)`, as in Garland and Heckbert's "Fast polygonal approximation of
-//! terrains and height fields" (1995) and in mapbox's delatin.
+//! **Sides first.** A sample on a side is interpolated from that side's vertices alone, so
+//! plain greedy insertion ends with exactly the 1D greedy points on every side (ties go the
+//! same way); choosing them first changes only the interior, and for the better: 0.3% fewer
+//! triangles than pydelatin (hmm's greedy insertion, which does not) over 40 sets of crops of
+//! four real DEMs, up to 18% fewer at coarse tolerances (`server/tools/pydelatin_compare.py`).
+//! It also means two meshes of the same samples on a side, at the same tolerance and stride,
+//! meet vertex for vertex there without further ado.
 //!
-//! Determinism: the same grid, tolerance and fixed points give the same mesh. Within a triangle
-//! the worst sample wins ties by the smallest `(row, col)`; across triangles the heap orders by
-//! error, then position, then triangle slot.
+//! **Cost.** Each triangle's worst sample sits in an indexed max-heap (`queue`; an
+//! entry is updated in place when its triangle is rewritten), so an insertion costs the area of
+//! the triangles it changes plus `O(log n)`, as in Garland and Heckbert's "Fast polygonal
+//! approximation of terrains and height fields" (1995) and in mapbox's delatin.
+//!
+//! **Determinism.** The same grid, tolerance and fixed points give the same mesh. Within a
+//! triangle the worst sample wins ties by the smallest `(row, col)`; across triangles the heap
+//! orders by error, then position, then triangle slot.
 //!
 //! **Lattices.** [`tin_span`] meshes a window of a larger grid (a tile's samples) and takes as
 //! candidates only its lattice: every `stride`-th sample plus the window's last column and row,
@@ -28,10 +38,9 @@
 //! on the lattice or not; vertices are window-relative sample positions (so a coarse tile can
 //! carry fine border points, [`super::borders`]). The tolerance is checked at the lattice.
 //!
-//! **Locked sides.** Sides of the window may be locked: their samples are never inserted, so the
-//! fixed points are the only vertices on them. This is how neighbouring tiles meet vertex for
-//! vertex when both take the same border points; it also means the tolerance holds on a locked
-//! side only as far as its fixed points were chosen for it.
+//! **Locked sides.** A locked side takes no points but the fixed points on it. This is how
+//! neighbouring tiles meet vertex for vertex when both take the same border points; the
+//! tolerance then holds on that side only as far as those points were chosen for it.
 
 use super::delaunay::Triangulation;
 use super::queue::Queue;
@@ -50,8 +59,6 @@ struct Greedy<'g> {
     mesh: Triangulation,
     /// Whether each lattice sample (row-major) is a vertex already, never a candidate again.
     is_vertex: Vec<bool>,
-    /// Locked sides in [`relief_proto::tile::EDGES`] order (north, east, south, west).
-    locked: [bool; 4],
     /// Worst sample of each triangle whose error exceeds the tolerance.
     queue: Queue,
     /// The triangles an insertion rewrote, buffer reused from one insertion to the next.
@@ -61,8 +68,8 @@ struct Greedy<'g> {
 }
 
 /// The `tin` mesh of `grid` within `tolerance` metres: the grid's corners, the `fixed` sample
-/// positions `[col, row]` (duplicates ignored), and whatever samples greedy insertion needs.
-/// Every side stays free: border samples are inserted like any other.
+/// positions `[col, row]` (duplicates ignored), each side's 1D greedy points, and whatever
+/// samples greedy insertion needs inside.
 ///
 /// Panics if a fixed point lies outside the grid or the tolerance is negative or NaN.
 pub fn tin(grid: &HeightGrid<'_>, tolerance: f32, fixed: &[[u32; 2]]) -> TriMesh {
@@ -78,13 +85,14 @@ pub fn whole(grid: &HeightGrid<'_>) -> TileSpan {
     }
 }
 
-/// The `tin` mesh of the window `span` of `grid`, with candidates on its lattice, `fixed`
-/// points given relative to the window's first sample, and the sides marked in `locked`
-/// (north, east, south, west, as [`relief_proto::tile::EDGES`]) taking no vertices but the
-/// corners and the fixed points on them: the mesh then meets any other mesh built from the
-/// same points on that side vertex for vertex. Vertices are window-relative. The tolerance
-/// holds at every lattice sample off the locked sides; on them it holds only where the fixed
-/// points were chosen to it ([`super::borders::edge_points`]).
+/// The `tin` mesh of the window `span` of `grid`, with candidates on its lattice and `fixed`
+/// points given relative to the window's first sample. The sides marked in `locked` (north,
+/// east, south, west, as [`relief_proto::tile::EDGES`]) take no vertices but the corners and
+/// the fixed points on them, so that the mesh meets any other mesh built from the same points
+/// there vertex for vertex; the other sides take their fixed points plus the 1D greedy points
+/// of their lattice samples. Vertices are window-relative. The tolerance holds at every
+/// lattice sample off the locked sides; on them it holds only where the fixed points were
+/// chosen to it ([`super::borders::edge_points`]).
 ///
 /// Panics if the window leaves the grid, a fixed point leaves the window, or the tolerance is
 /// negative or NaN.
@@ -110,7 +118,6 @@ pub fn tin_span(
         n,
         mesh: Triangulation::rectangle(w + 1, h + 1),
         is_vertex: vec![false; n.0 as usize * n.1 as usize],
-        locked,
         queue: Queue::default(),
         dirty: Vec::new(),
         tolerance: f64::from(tolerance),
@@ -121,6 +128,7 @@ pub fn tin_span(
         }
     }
     let mut fixed = fixed.to_vec();
+    fixed.extend(free_side_points(grid, span, tolerance, &fixed, locked));
     fixed.sort_unstable_by_key(|p| (p[1], p[0]));
     fixed.dedup();
     for p in fixed {
@@ -145,6 +153,50 @@ pub fn tin_span(
         triangles: (0..m.len() as u32).map(|t| m.corners(t)).collect(),
         vertices: m.points,
     }
+}
+
+/// The points 1D greedy insertion picks on each free side of the window: its lattice samples
+/// and the fixed points on it (kept) as candidates, to `tolerance`.
+fn free_side_points(
+    grid: &HeightGrid<'_>,
+    span: &TileSpan,
+    tolerance: f32,
+    fixed: &[[u32; 2]],
+    locked: [bool; 4],
+) -> Vec<[u32; 2]> {
+    let (w, h) = (span.cols.1 - span.cols.0, span.rows.1 - span.rows.0);
+    let s = span.stride;
+    let lattice = |end: u32| (0..=end).filter(move |&v| v % s == 0 || v == end);
+    let mut out = Vec::new();
+    for (k, _) in locked.iter().enumerate().filter(|(_, l)| !**l) {
+        // The side as (along-axis, fixed coordinate, end along it).
+        let (axis, at, end) = match k {
+            0 => (0, 0, w),
+            1 => (1, w, h),
+            2 => (0, h, w),
+            _ => (1, 0, h),
+        };
+        let point = |v: u32| if axis == 0 { [v, at] } else { [at, v] };
+        let on: Vec<u32> = fixed
+            .iter()
+            .filter(|p| p[1 - axis] == at)
+            .map(|p| p[axis])
+            .collect();
+        let mut pos: Vec<u32> = lattice(end).chain(on.iter().copied()).collect();
+        pos.sort_unstable();
+        pos.dedup();
+        let forced: Vec<usize> = (0..pos.len()).filter(|&i| on.contains(&pos[i])).collect();
+        let z: Vec<f32> = pos
+            .iter()
+            .map(|&v| {
+                let p = point(v);
+                grid.at(span.cols.0 + p[0], span.rows.0 + p[1])
+            })
+            .collect();
+        let keep = super::borders::edge_points(&pos, &z, tolerance, &forced);
+        out.extend(keep.into_iter().map(|i| point(pos[i])));
+    }
+    out
 }
 
 impl Greedy<'_> {
@@ -204,7 +256,7 @@ impl Greedy<'_> {
             let r = self.y(j);
             let row = j * self.n.0;
             j += 1;
-            if (self.locked[0] && r == 0) || (self.locked[2] && r == ye) {
+            if r == 0 || r == ye {
                 continue;
             }
             let Some((lo, hi)) = row_span(v, r) else {
@@ -220,8 +272,7 @@ impl Greedy<'_> {
                     a = edges.map(|(p, q)| area2(p, q, [c, r]) as f64);
                 }
                 let k = row + i;
-                let locked = (self.locked[3] && c == 0) || (self.locked[1] && c == xe);
-                if !self.is_vertex[k as usize] && !locked {
+                if !self.is_vertex[k as usize] && c != 0 && c != xe {
                     let zs = f64::from(zrow[c as usize]);
                     let num = (a[0] * (z[0] - zs) + a[1] * (z[1] - zs) + a[2] * (z[2] - zs)).abs();
                     if best.is_none_or(|b| num > b.0) {
