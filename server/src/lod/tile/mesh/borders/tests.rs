@@ -186,3 +186,31 @@ fn the_comb_holds_every_finest_corner() {
     let m = tile_tin(&shape, t, &grid, 1.0, Some(&|_| 1.0));
     assert_eq!((m.vertices.len(), m.triangles.len()), (6, 4));
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Any grid size, tile size and heights: shared borders meet across the same and adjacent
+    /// levels, and every mesh is Delaunay and covers its tile.
+    #[test]
+    fn shared_borders_meet_on_any_pyramid(
+        w in 3u32..40,
+        h in 3u32..40,
+        tile in prop_oneof![Just(2u32), Just(4), Just(8)],
+        seed in 0u32..1000,
+        base in 0.0f32..2.0,
+    ) {
+        let z: Vec<f32> = terrain(w, h, seed).iter().map(|v| (v * 2.0).round() * 0.5).collect();
+        let grid = HeightGrid::new(w as usize, h as usize, &z).unwrap();
+        let shape = TileShape::new(w, h, tile).unwrap();
+        let depth = shape.depth();
+        let tol = |k: u8| base * (1u32 << (depth - k)) as f32;
+        let mesh = |t: TileId| {
+            let m = tile_tin(&shape, t, &grid, tol(t.level), Some(&tol));
+            let sp = shape.span(t);
+            assert_delaunay(&m, (sp.cols.1 - sp.cols.0 + 1) as usize, (sp.rows.1 - sp.rows.0 + 1) as usize);
+            m
+        };
+        prop_assert_eq!(mismatches(&shape, 0..=1, mesh).1, 0);
+    }
+}
