@@ -9,11 +9,20 @@
 //! the store). Triangles are counter-clockwise seen from above in world axes (x east, y north),
 //! which is clockwise in `(col, row)` image axes.
 //!
+//! Mesh kinds and their helpers:
 //! - [`rqt`]: paper 002's restricted-quadtree mesh, from saturated vertex errors;
-//! - [`fractal`]: paper 002's box-counting fractal dimension and its region tree.
+//! - [`fractal`]: paper 002's box-counting fractal dimension and its region tree;
+//! - [`tin`]: paper 003's greedy-insertion Delaunay TIN to a tolerance, over `delaunay`
+//!   and `queue`;
+//! - [`borders`]: paper 003's shared border points, so that `tin` tiles of the same and
+//!   adjacent levels meet vertex for vertex.
 
+pub mod borders;
+mod delaunay;
 pub mod fractal;
+mod queue;
 pub mod rqt;
+pub mod tin;
 
 /// Heights on a regular grid, row-major, metres.
 #[derive(Clone, Copy, Debug)]
@@ -81,8 +90,9 @@ impl TriMesh {
 
     /// The largest vertical distance, metres, between the mesh and every sample of `grid`
     /// inside its triangles (brute force: each triangle's bounding box of samples is tested
-    /// point by point, barycentric interpolation in `f64`). Samples on shared edges are tested
-    /// by every triangle that holds them.
+    /// point by point, barycentric interpolation in `f64` of the vertices' height differences
+    /// to the sample, so that a sample on the plane has no rounding error). Samples on
+    /// shared edges are tested by every triangle that holds them.
     pub fn max_error(&self, grid: &HeightGrid<'_>) -> f32 {
         let mut worst = 0.0f64;
         for t in &self.triangles {
@@ -99,14 +109,17 @@ impl TriMesh {
             for r in r0..=r1 {
                 for c in c0..=c1 {
                     let p = [c, r];
-                    let w0 = area2(v[1], v[2], p) as f64 / d;
-                    let w1 = area2(v[2], v[0], p) as f64 / d;
-                    let w2 = area2(v[0], v[1], p) as f64 / d;
-                    if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                    let a0 = area2(v[1], v[2], p) as f64;
+                    let a1 = area2(v[2], v[0], p) as f64;
+                    let a2 = area2(v[0], v[1], p) as f64;
+                    if a0 < 0.0 || a1 < 0.0 || a2 < 0.0 {
                         continue;
                     }
-                    let m = w0 * z[0] + w1 * z[1] + w2 * z[2];
-                    worst = worst.max((m - f64::from(grid.at(c, r))).abs());
+                    // The mesh minus the sample, sum a_k (z_k - z) / d with integer areas a_k:
+                    // exactly zero for a sample on a plane through integer heights.
+                    let zs = f64::from(grid.at(c, r));
+                    let m = (a0 * (z[0] - zs) + a1 * (z[1] - zs) + a2 * (z[2] - zs)) / d;
+                    worst = worst.max(m.abs());
                 }
             }
         }
