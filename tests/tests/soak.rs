@@ -3,7 +3,7 @@
 //! is sampled every 5 s; after a 30 s warm-up it must stay within 5 %, with no desyncs or
 //! errors, every drop resumed, and cycles and resumes under way.
 //!
-//! Ignored in the plain test run (it takes two and a half minutes and both cores); CI runs it:
+//! Ignored in the plain test run (it takes two minutes and both cores); CI runs it:
 //! `cargo test --release -p relief-tests --test soak -- --ignored soak_`.
 
 use relief_client::load::soak::cycle::CycleShape;
