@@ -4,6 +4,7 @@
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use relief_client::fly::{self, FlyOptions};
+use relief_client::load::soak::{self, SoakOptions};
 use relief_client::load::{self, LoadOptions, LoadPath};
 use relief_client::render::MorphStage;
 use relief_client::render::bench::{self, RenderBenchOptions};
@@ -265,16 +266,39 @@ enum Command {
         exit_after: Option<f64>,
     },
     /// Run many sessions at once against a server and report bandwidth, latency, errors and the
-    /// server's CPU and memory; with --sweep, run stages of growing size and find the knee.
+    /// server's CPU and memory; with --sweep, run stages of growing size and find the knee; with
+    /// --soak, cycle sessions for a long, bounded time and judge the server's memory.
+    #[command(after_long_help = SOAK_HELP)]
     Load {
         #[command(flatten)]
         stream: StreamArgs,
-        /// Concurrent sessions (ignored with --sweep).
-        #[arg(long, allow_negative_numbers = true, default_value_t = 10)]
-        sessions: usize,
+        /// Concurrent sessions (ignored with --sweep) [default: 10; 500 with --soak].
+        #[arg(long, allow_negative_numbers = true)]
+        sessions: Option<usize>,
         /// Seconds every session flies once all have started.
         #[arg(long, allow_negative_numbers = true, default_value_t = 30.0)]
         duration: f64,
+        /// Soak for this long (e.g. 2m, 1h, 1h30m; at most 7d): every session cycles through
+        /// connect, fly, drop, resume, fly, close, and the server's RSS is sampled; exits
+        /// non-zero when the RSS after the warm-up spreads more than --rss-tolerance, or on any
+        /// desync, error or drop not resumed (see below).
+        #[arg(long, value_parser = soak::duration::parse_duration, conflicts_with_all = ["sweep", "duration", "json", "knee_ms"])]
+        soak: Option<Duration>,
+        /// Soak: how often the server's RSS is sampled (e.g. 60s, 5s).
+        #[arg(long, value_parser = soak::duration::parse_duration, default_value = "60s", requires = "soak")]
+        sample_every: Duration,
+        /// Soak: how long at the start is left out of the verdict [default: 10% of the soak, at
+        /// least one sample interval].
+        #[arg(long, value_parser = soak::duration::parse_duration, requires = "soak")]
+        warmup: Option<Duration>,
+        /// Soak: the largest (max - min) / min of the RSS samples after the warm-up that passes.
+        #[arg(
+            long,
+            allow_negative_numbers = true,
+            default_value_t = 0.05,
+            requires = "soak"
+        )]
+        rss_tolerance: f64,
         /// Which paths: `standard` or `stress` (phase-shifted per session), or `random`
         /// (a seeded loop per session).
         #[arg(long, default_value = "standard")]
@@ -282,7 +306,8 @@ enum Command {
         /// Seed of the random paths.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Seconds over which sessions start, evenly spread [default: 10% of the duration].
+        /// Seconds over which sessions start, evenly spread [default: 10% of the duration; with
+        /// --soak, 40 sessions a second, at most the warm-up].
         #[arg(long, allow_negative_numbers = true)]
         ramp: Option<f64>,
         /// Rebuild fans as a viewer would (costs client CPU); tile sessions keep their decoded
@@ -298,7 +323,8 @@ enum Command {
         /// Write the JSON report to this file.
         #[arg(long)]
         json: Option<PathBuf>,
-        /// Write report.json, summary.md and PNG plots into this folder.
+        /// Write report.json, summary.md and PNG plots into this folder (with --soak:
+        /// soak.json, samples.csv, rss.png and summary.md).
         #[arg(long)]
         report: Option<PathBuf>,
         /// Hide the progress bar.
@@ -306,6 +332,24 @@ enum Command {
         quiet: bool,
     },
 }
+
+/// `relief-client load --help`'s last section: what a soak does and judges.
+const SOAK_HELP: &str = "\
+Soak (--soak DURATION):
+  Each of --sessions virtual clients (500 by default) cycles until the end: it connects (a new
+  session), flies 50 to 200 poses of its path at --rate (10 Hz), drops the connection (the
+  socket closes without a close handshake), stays away up to 2 s, resumes (reconnects with a
+  snapshot of its cut; the server must answer `resumed`), flies again, and after 1 to 3 drops
+  closes and starts again as a new session. Lengths and pauses are drawn from --seed per client.
+  The server's /metrics is scraped every --sample-every; samples in the first --warmup are left
+  out. The run passes when (max - min) / min of the RSS after the warm-up is at most
+  --rss-tolerance, with no desyncs, no client errors, every drop resumed, and at least one cycle
+  and one resume. A least-squares slope of the RSS (MiB/h) is reported, with a warning when its
+  rise over the window exceeds half the tolerance. --report DIR writes soak.json, samples.csv,
+  rss.png and summary.md.
+
+  relief-client load --soak 1h --report soak/                 # 500 sessions, RSS each minute
+  relief-client load --soak 2m --sample-every 5s --warmup 30s # the CI version";
 
 /// Keeps headless commands away from the windowing system.
 mod headless_env {
@@ -464,6 +508,10 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             stream,
             sessions,
             duration,
+            soak,
+            sample_every,
+            warmup,
+            rss_tolerance,
             path,
             seed,
             ramp,
@@ -474,6 +522,56 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             report,
             quiet,
         } => {
+            if let Some(length) = soak {
+                let sessions = sessions.unwrap_or(soak::DEFAULT_SESSIONS);
+                let warmup =
+                    warmup.unwrap_or_else(|| SoakOptions::default_warmup(length, sample_every));
+                let ramp = match ramp {
+                    Some(r) => {
+                        anyhow::ensure!(
+                            r.is_finite() && (0.0..1e6).contains(&r),
+                            "--ramp must be 0 or more seconds"
+                        );
+                        Duration::from_secs_f64(r)
+                    }
+                    None => SoakOptions::default_ramp(sessions, warmup),
+                };
+                let session = stream.session()?;
+                let opts = SoakOptions {
+                    load: LoadOptions {
+                        url: session.url,
+                        sessions,
+                        duration: length,
+                        ramp,
+                        path,
+                        seed,
+                        tau: session.tau,
+                        budget: session.budget,
+                        stream: session.stream,
+                        rate_hz: stream.rate,
+                        mesh,
+                        progress: !quiet,
+                    },
+                    sample_every,
+                    warmup,
+                    rss_tolerance,
+                    shape: soak::cycle::CycleShape::default(),
+                };
+                let r = rt.block_on(soak::run_soak(&opts))?;
+                if let Some(dir) = report {
+                    for f in soak::report::write_report(&dir, &r)? {
+                        eprintln!("wrote {}", f.display());
+                    }
+                }
+                println!("{}", soak::report::markdown(&r, None));
+                anyhow::ensure!(
+                    r.verdict.pass,
+                    "the soak failed: {}",
+                    r.verdict.failures.join("; ")
+                );
+                return Ok(());
+            }
+            let sessions = sessions.unwrap_or(10);
             anyhow::ensure!(
                 duration.is_finite() && duration > 0.0 && duration < 1e6,
                 "--duration must be a positive number of seconds"

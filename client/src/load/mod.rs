@@ -10,8 +10,11 @@
 //!
 //! - [`stats`]: turning the flights and samples into a [`StageReport`].
 //! - [`report`]: the JSON file, the Markdown summary and the plots of `--report DIR`.
+//! - [`soak`]: `--soak DURATION`: sessions cycling (connect, fly, drop, resume) for a long,
+//!   bounded time while the server's resident memory is sampled and judged.
 
 pub mod report;
+pub mod soak;
 pub mod stats;
 
 use crate::flight::{self, FlightLog, PathSpec};
@@ -119,6 +122,10 @@ pub struct ServerSample {
     pub sessions: f64,
     /// `relief_updates_total`.
     pub updates: f64,
+    /// `relief_sessions_total`.
+    pub sessions_total: f64,
+    /// `relief_resumes_total`.
+    pub resumes: f64,
     /// `relief_bytes_out_total`.
     pub bytes_out: f64,
     /// Sum of `relief_errors_total` over kinds.
@@ -149,6 +156,8 @@ pub async fn scrape(base: &str, t_s: f64) -> Result<ServerSample, HttpError> {
         rss_bytes: get("process_resident_memory_bytes"),
         sessions: get("relief_sessions_active"),
         updates: get("relief_updates_total"),
+        sessions_total: get("relief_sessions_total"),
+        resumes: get("relief_resumes_total"),
         bytes_out: get("relief_bytes_out_total"),
         errors: m
             .iter()

@@ -149,7 +149,7 @@ pub struct StageReport {
 }
 
 /// The stream in words: `vertex`, or e.g. `tiles (patches, cache 512)`.
-fn stream_name(s: relief_proto::msg::StreamKind) -> String {
+pub(crate) fn stream_name(s: relief_proto::msg::StreamKind) -> String {
     match s {
         relief_proto::msg::StreamKind::Vertex => "vertex".into(),
         relief_proto::msg::StreamKind::Tiles(p) => {
@@ -407,6 +407,8 @@ mod tests {
             rss_bytes: rss,
             sessions: 2.0,
             updates,
+            sessions_total: 0.0,
+            resumes: 0.0,
             bytes_out: 0.0,
             errors: bad,
             errors_by_kind: [("bad_camera".to_string(), bad)].into_iter().collect(),
