@@ -1,10 +1,10 @@
 //! Figures of the `rqt` tile mesh (issue 13, paper 002) on the shared real DEMs: triangles and
 //! time per 65 x 65 tile and per 257 x 257 crop at a few tolerances, and the comparison with
-//! pymartini (`tools/pymartini_compare.py`) at the same measured maximum error.
+//! pymartini (`server/tools/pymartini_compare.py`) at the same measured maximum error.
 //!
 //! ```text
 //! cargo run --release -p relief-server --example rqt_figure -- table [DIR]
-//! python tools/pymartini_compare.py DIR
+//! python server/tools/pymartini_compare.py DIR
 //! cargo run --release -p relief-server --example rqt_figure -- compare DIR
 //! ```
 //!

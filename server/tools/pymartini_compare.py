@@ -3,7 +3,7 @@ at each tolerance, for `rqt_figure compare DIR`, which measures both sides' maxi
 the same brute force (relief-server's `TriMesh::max_error`).
 
     pip install pymartini numpy
-    python tools/pymartini_compare.py DIR
+    python server/tools/pymartini_compare.py DIR
 
 Writes `{dem}_{n}.martini` beside each `{dem}_{n}.f32` (layouts in server/examples/rqt_figure.rs)
 and prints pymartini's mean time per crop (error table, then each mesh).
