@@ -12,7 +12,10 @@
 //! [`TriMesh::max_error`]), whether the triangles cover the grid once, and for `tin` the best
 //! of five runs in milliseconds.
 
-use relief_server::dem::{self, LoadOptions, PngOptions};
+#[path = "common/dems.rs"]
+#[allow(dead_code, reason = "the tin examples use only the PNG loader")]
+mod dems;
+
 use relief_server::lod::tile::mesh::tin::tin;
 use relief_server::lod::tile::mesh::{HeightGrid, TriMesh, area2};
 use std::time::Instant;
@@ -29,24 +32,7 @@ fn read_raw(path: &str, w: usize, h: usize) -> anyhow::Result<Vec<f32>> {
 
 /// Writes a crop of a PNG DEM.
 fn crop(path: &str, c0: usize, r0: usize, w: usize, h: usize, out: &str) -> anyhow::Result<()> {
-    let side: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path.replace(".png", ".json"))?)?;
-    let num = |k: &str| {
-        side[k]
-            .as_f64()
-            .ok_or_else(|| anyhow::anyhow!("sidecar lacks {k}"))
-    };
-    let opts = LoadOptions {
-        spacing_x: side["spacing_m_xy"][0].as_f64(),
-        spacing_y: side["spacing_m_xy"][1].as_f64(),
-        png: PngOptions {
-            scale: num("scale")?,
-            offset: num("offset")?,
-            nodata_value: Some(0),
-        },
-        ..Default::default()
-    };
-    let d = dem::load(path, &opts)?;
+    let d = dems::load_png(std::path::Path::new(path))?;
     let dw = d.width as usize;
     anyhow::ensure!(
         c0 + w <= dw && r0 + h <= d.height as usize,

@@ -17,8 +17,11 @@
 //!   finest), and the shared tiles' largest lattice error over their tolerance;
 //! - `timing`: triangles and milliseconds per 65 x 65 tile and per 257 x 257 crop.
 
+#[path = "common/dems.rs"]
+#[allow(dead_code, reason = "the tin examples use only the PNG loader")]
+mod dems;
+
 use relief_proto::tile::{TileId, TileShape};
-use relief_server::dem::{self, LoadOptions, PngOptions};
 use relief_server::lod::tile::mesh::borders::{self, edge_points};
 use relief_server::lod::tile::mesh::tin::{lattice_error, tin, tin_span, whole};
 use relief_server::lod::tile::mesh::{HeightGrid, TriMesh};
@@ -47,24 +50,7 @@ impl Heights {
 
 /// Loads a PNG with its sidecar.
 fn load(path: &str) -> anyhow::Result<Heights> {
-    let side: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path.replace(".png", ".json"))?)?;
-    let num = |k: &str| {
-        side[k]
-            .as_f64()
-            .ok_or_else(|| anyhow::anyhow!("sidecar lacks {k}"))
-    };
-    let opts = LoadOptions {
-        spacing_x: side["spacing_m_xy"][0].as_f64(),
-        spacing_y: side["spacing_m_xy"][1].as_f64(),
-        png: PngOptions {
-            scale: num("scale")?,
-            offset: num("offset")?,
-            nodata_value: Some(0),
-        },
-        ..Default::default()
-    };
-    let d = dem::load(path, &opts)?;
+    let d = dems::load_png(std::path::Path::new(path))?;
     let name = std::path::Path::new(path)
         .file_stem()
         .map_or_else(|| path.to_string(), |s| s.to_string_lossy().into_owned());

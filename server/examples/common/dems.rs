@@ -2,7 +2,7 @@
 //! `$RELIEF_DEMS`) for the mesh figures, and square crops of them.
 
 use relief_server::dem::{self, Dem, LoadOptions, PngOptions};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// The DEMs, by folder name.
 pub const NAMES: [&str; 4] = [
@@ -30,20 +30,29 @@ pub fn load(name: &str) -> anyhow::Result<Dem> {
             return Ok(dem::load(&p.to_string_lossy(), &LoadOptions::default())?);
         }
     }
+    load_png(&dir.join(format!("{name}.png")))
+}
+
+/// Loads a 16-bit PNG DEM with the scale, offset and spacing of its JSON sidecar (the same
+/// name with `.json`).
+pub fn load_png(png: &Path) -> anyhow::Result<Dem> {
     let car: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{name}.json")))?)?;
-    let num = |v: &serde_json::Value| v.as_f64().unwrap_or(1.0);
+        serde_json::from_str(&std::fs::read_to_string(png.with_extension("json"))?)?;
+    let num = |k: &str| {
+        car[k]
+            .as_f64()
+            .ok_or_else(|| anyhow::anyhow!("{}: the sidecar lacks {k}", png.display()))
+    };
     let opts = LoadOptions {
-        spacing_x: Some(num(&car["spacing_m_xy"][0])),
-        spacing_y: Some(num(&car["spacing_m_xy"][1])),
+        spacing_x: car["spacing_m_xy"][0].as_f64(),
+        spacing_y: car["spacing_m_xy"][1].as_f64(),
         png: PngOptions {
-            scale: num(&car["scale"]),
-            offset: num(&car["offset"]),
+            scale: num("scale")?,
+            offset: num("offset")?,
             nodata_value: Some(0),
         },
         ..LoadOptions::default()
     };
-    let png = dir.join(format!("{name}.png"));
     Ok(dem::load(&png.to_string_lossy(), &opts)?)
 }
 
