@@ -349,7 +349,7 @@ Soak (--soak DURATION):
   rss.png and summary.md.
 
   relief-client load --soak 1h --report soak/                 # 500 sessions, RSS each minute
-  relief-client load --soak 2m --sample-every 5s --warmup 30s # the CI version";
+  relief-client load --soak 3m --sample-every 5s --warmup 1m  # the CI version";
 
 /// Keeps headless commands away from the windowing system.
 mod headless_env {
