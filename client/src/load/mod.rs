@@ -247,6 +247,32 @@ fn check(opts: &LoadOptions) -> Result<(), LoadError> {
     Ok(())
 }
 
+/// The sessions' paths, with ground heights from the server: one shared loop for standard and
+/// stress (each session phase-shifted along it), or one seeded random loop per session.
+pub(crate) async fn paths(
+    opts: &LoadOptions,
+    extent: (f32, f32),
+) -> Result<Vec<Arc<Vec<Camera>>>, LoadError> {
+    let kind = match opts.path {
+        LoadPath::Standard => PathKind::Standard,
+        LoadPath::Stress => PathKind::Stress,
+        LoadPath::Random => {
+            let mut v = Vec::with_capacity(opts.sessions);
+            for i in 0..opts.sessions {
+                let spec = PathSpec::Random(opts.seed.wrapping_add(i as u64));
+                v.push(Arc::new(
+                    flight::server_path(&opts.url, extent, spec).await?,
+                ));
+                // One heights request each: stay well under the per-address connection rate.
+                tokio::time::sleep(Duration::from_millis(25)).await;
+            }
+            return Ok(v);
+        }
+    };
+    let cams = flight::server_path(&opts.url, extent, PathSpec::Kind(kind)).await?;
+    Ok(vec![Arc::new(cams)])
+}
+
 /// Runs one stage and reports it.
 pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
     if opts.sessions == 0 {
@@ -255,27 +281,7 @@ pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
     check(opts)?;
     let base = http::base_of(&opts.url)?;
     let extent = terrain_extent(&base).await?;
-    // Paths: one shared loop for standard and stress (phase-shifted), one per session for random.
-    let mut paths: Vec<Arc<Vec<Camera>>> = Vec::new();
-    match opts.path {
-        LoadPath::Standard | LoadPath::Stress => {
-            let kind = if opts.path == LoadPath::Standard {
-                PathKind::Standard
-            } else {
-                PathKind::Stress
-            };
-            let cams = flight::server_path(&opts.url, extent, PathSpec::Kind(kind)).await?;
-            paths.push(Arc::new(cams));
-        }
-        LoadPath::Random => {
-            for i in 0..opts.sessions {
-                let spec = PathSpec::Random(opts.seed.wrapping_add(i as u64));
-                paths.push(Arc::new(
-                    flight::server_path(&opts.url, extent, spec).await?,
-                ));
-            }
-        }
-    }
+    let paths = paths(opts, extent).await?;
     let before = scrape(&base, 0.0).await?;
     let t0 = Instant::now();
     let ramp_end = t0 + opts.ramp;

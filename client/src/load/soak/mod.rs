@@ -14,13 +14,10 @@ pub mod duration;
 pub mod report;
 pub mod verdict;
 
-use super::{LoadError, LoadOptions, LoadPath, ServerSample, progress_bar, scrape};
-use crate::flight::{self, PathSpec};
+use super::{LoadError, LoadOptions, ServerSample, progress_bar, scrape};
 use crate::http;
 use crate::session::SessionConfig;
 use cycle::{ClientPlan, CycleShape, Rng, Shared};
-use relief_proto::path::PathKind;
-use relief_proto::view::Camera;
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -165,45 +162,14 @@ pub struct SoakReport {
     pub verdict: Verdict,
 }
 
-/// The clients' paths: one shared loop (standard or stress, the clients spread along it), or a
-/// random loop per client.
-async fn paths(opts: &LoadOptions) -> Result<Vec<Arc<Vec<Camera>>>, LoadError> {
-    let base = http::base_of(&opts.url)?;
-    let extent = super::terrain_extent(&base).await?;
-    match opts.path {
-        LoadPath::Standard | LoadPath::Stress => {
-            let kind = if opts.path == LoadPath::Standard {
-                PathKind::Standard
-            } else {
-                PathKind::Stress
-            };
-            let spec = PathSpec::Kind(kind);
-            Ok(vec![Arc::new(
-                flight::server_path(&opts.url, extent, spec).await?,
-            )])
-        }
-        LoadPath::Random => {
-            let mut v = Vec::with_capacity(opts.sessions);
-            for i in 0..opts.sessions {
-                let spec = PathSpec::Random(opts.seed.wrapping_add(i as u64));
-                v.push(Arc::new(
-                    flight::server_path(&opts.url, extent, spec).await?,
-                ));
-                // One heights request each: stay well under the per-address connection rate.
-                tokio::time::sleep(Duration::from_millis(25)).await;
-            }
-            Ok(v)
-        }
-    }
-}
-
 /// Runs a soak and judges it. Errors only when it cannot start (bad options, no server); a
 /// failed verdict is in the report.
 pub async fn run_soak(opts: &SoakOptions) -> Result<SoakReport, LoadError> {
     opts.check()?;
     let lo = &opts.load;
     let base = http::base_of(&lo.url)?;
-    let paths = paths(lo).await?;
+    let extent = super::terrain_extent(&http::base_of(&lo.url)?).await?;
+    let paths = super::paths(lo, extent).await?;
     let shared = Arc::new(Shared::default());
     let sample = |s: ServerSample, shared: &Shared| {
         let t = shared.totals();
