@@ -49,7 +49,13 @@ const RESERVED_FDS: u64 = 64 + OVERFLOW_READERS as u64;
 
 /// A connection's slot, held by the connection and by a WebSocket session upgraded from it.
 #[derive(Clone, Debug)]
-pub struct ConnSlot(#[allow(dead_code)] Arc<SlotPermit>);
+pub struct ConnSlot(
+    #[allow(
+        dead_code,
+        reason = "held, never read: dropping the last clone frees the slot"
+    )]
+    Arc<SlotPermit>,
+);
 
 /// Raises the open-file limit to its hard maximum and returns how many connections fit
 /// under it, at most `wanted`.
