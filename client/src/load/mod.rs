@@ -273,6 +273,34 @@ pub(crate) async fn paths(
     Ok(vec![Arc::new(cams)])
 }
 
+/// When session `i` of the stage or soak starts, after the stage's start: spread evenly over
+/// the ramp.
+pub(crate) fn session_start(i: usize, opts: &LoadOptions) -> Duration {
+    opts.ramp.mul_f64(i as f64 / opts.sessions as f64)
+}
+
+/// Where session `i` of `n` begins on its path of `len` poses: on a loop shared by all
+/// (`paths` = 1), its share of the loop plus the poses it would have flown had it started with
+/// the first session, so that once the ramp is over the sessions are evenly spread along the
+/// loop; on a path of its own, the start.
+///
+/// Without the second term, a 12.5 s ramp on the standard loop left a fifth of it empty: the
+/// gap travelled round with the sessions, and the server's memory rose and fell with the
+/// detail under them (a 3-4 % wave with the loop's period in the 3-minute soak).
+pub(crate) fn loop_phase(
+    i: usize,
+    n: usize,
+    paths: usize,
+    len: usize,
+    opts: &LoadOptions,
+) -> usize {
+    if paths != 1 || len == 0 {
+        return 0;
+    }
+    let lead = (session_start(i, opts).as_secs_f64() * opts.rate_hz).round() as usize;
+    (i * len / n + lead) % len
+}
+
 /// Runs one stage and reports it.
 pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
     if opts.sessions == 0 {
@@ -295,19 +323,14 @@ pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
         config.stream = opts.stream;
         config.mesh = opts.mesh;
         let cams = paths[i % paths.len()].clone();
-        let phase = if paths.len() == 1 {
-            i * cams.len() / opts.sessions
-        } else {
-            0
-        };
-        let start = t0 + opts.ramp.mul_f64(i as f64 / opts.sessions as f64);
+        let phase = loop_phase(i, opts.sessions, paths.len(), cams.len(), opts);
         tasks.push(tokio::spawn(virtual_client(Plan {
             config,
             cams,
             phase,
             rate_hz: opts.rate_hz,
             t0,
-            start,
+            start: t0 + session_start(i, opts),
             stop,
             deltas: deltas.clone(),
         })));
@@ -397,4 +420,62 @@ pub async fn run_sweep(
         tokio::time::sleep(Duration::from_secs(1)).await;
     }
     Ok(stages)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn opts(sessions: usize, ramp_s: f64, rate_hz: f64) -> LoadOptions {
+        LoadOptions {
+            url: "ws://127.0.0.1:1/v1/stream".into(),
+            sessions,
+            duration: Duration::from_secs(60),
+            ramp: Duration::from_secs_f64(ramp_s),
+            path: LoadPath::Standard,
+            seed: 1,
+            tau: 1.0,
+            budget: None,
+            stream: relief_proto::msg::StreamKind::Vertex,
+            rate_hz,
+            mesh: false,
+            progress: false,
+        }
+    }
+
+    /// Where each session is on the loop once the last has started (poses flown since each
+    /// session's own start added to its phase).
+    fn positions_after_ramp(o: &LoadOptions, len: usize) -> Vec<usize> {
+        let end = o.ramp.as_secs_f64();
+        (0..o.sessions)
+            .map(|i| {
+                let flown = (end - session_start(i, o).as_secs_f64()) * o.rate_hz;
+                (loop_phase(i, o.sessions, 1, len, o) + flown.round() as usize) % len
+            })
+            .collect()
+    }
+
+    #[test]
+    fn sessions_on_a_shared_loop_are_evenly_spread_once_the_ramp_is_over() {
+        let (len, o) = (650, opts(500, 12.5, 10.0));
+        let mut pos = positions_after_ramp(&o, len);
+        pos.sort_unstable();
+        // The largest gap between neighbours (round the loop) is about len / n, not the
+        // ramp's 125 poses.
+        let gaps = pos.windows(2).map(|w| w[1] - w[0]);
+        let wrap = pos[0] + len - pos[pos.len() - 1];
+        let widest = gaps.chain([wrap]).max().unwrap();
+        assert!(widest <= 3, "widest gap {widest} poses");
+    }
+
+    #[test]
+    fn own_paths_and_lock_step_start_at_the_beginning_or_the_share() {
+        let o = opts(4, 10.0, 0.0);
+        // Lock step (rate 0): the share alone.
+        let phases: Vec<usize> = (0..4).map(|i| loop_phase(i, 4, 1, 100, &o)).collect();
+        assert_eq!(phases, [0, 25, 50, 75]);
+        // A path per session: from its start.
+        assert_eq!(loop_phase(3, 4, 4, 100, &opts(4, 10.0, 10.0)), 0);
+        assert_eq!(loop_phase(1, 4, 1, 0, &o), 0);
+    }
 }

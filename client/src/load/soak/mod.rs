@@ -193,11 +193,7 @@ pub async fn run_soak(opts: &SoakOptions) -> Result<SoakReport, LoadError> {
     let mut tasks = Vec::with_capacity(lo.sessions);
     for i in 0..lo.sessions {
         let cams = paths[i % paths.len()].clone();
-        let cursor = if paths.len() == 1 {
-            i * cams.len() / lo.sessions
-        } else {
-            0
-        };
+        let cursor = super::loop_phase(i, lo.sessions, paths.len(), cams.len(), lo);
         let config = SessionConfig {
             tau: lo.tau,
             budget: lo.budget,
@@ -210,7 +206,7 @@ pub async fn run_soak(opts: &SoakOptions) -> Result<SoakReport, LoadError> {
             cams,
             cursor,
             rate_hz: lo.rate_hz,
-            start: t0 + lo.ramp.mul_f64(i as f64 / lo.sessions as f64),
+            start: t0 + super::session_start(i, lo),
             stop,
             shape: opts.shape,
             rng: Rng::new(seeds.next_u64()),
