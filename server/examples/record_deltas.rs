@@ -25,7 +25,17 @@ fn main() -> anyhow::Result<()> {
     };
     let frames: usize = rest.first().map_or(Ok(usize::MAX), |s| s.parse())?;
     let dem = dem::load(dem, &LoadOptions::default())?;
-    let flight = Flight::prepare(&dem, PathKind::Standard, 256, Some(usize::MAX), 1, false)?;
+    let flight = Flight::prepare(
+        &dem,
+        PathKind::Standard,
+        relief_server::preprocess::BuildOptions {
+            tile_size: 256,
+            ..Default::default()
+        },
+        Some(usize::MAX),
+        1,
+        false,
+    )?;
     let store = &flight.store;
     let engine = VertexEngine::new(store);
     let geom = store.geometry();

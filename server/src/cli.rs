@@ -44,6 +44,11 @@ enum Command {
         /// Cesium's 65 x 65-vertex tiles).
         #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
         tile_size: u32,
+        /// How the tile stream's tiles are meshed: `grid` (every lattice vertex; crack
+        /// patches or skirts), `rqt` (paper 002's restricted quadtree; skirts) or `tin` (paper
+        /// 003's greedy Delaunay TIN with shared borders, or skirts). See docs/streams.md.
+        #[arg(long, value_enum, default_value = "grid")]
+        tile_mesh: TileMeshArg,
         #[command(flatten)]
         dem: DemArgs,
     },
@@ -78,7 +83,31 @@ enum BenchCommand {
         /// Cells per tile side (a power of two from 2 to 256).
         #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
         tile_size: u32,
+        /// The tiles' mesh kind (as `build --tile-mesh`).
+        #[arg(long, value_enum, default_value = "grid")]
+        tile_mesh: TileMeshArg,
     },
+}
+
+/// A tile mesh kind on the command line.
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum TileMeshArg {
+    /// Every vertex of the tile's lattice.
+    Grid,
+    /// Paper 002's restricted quadtree.
+    Rqt,
+    /// Paper 003's greedy-insertion Delaunay TIN.
+    Tin,
+}
+
+impl From<TileMeshArg> for relief_proto::tile::body::MeshKind {
+    fn from(a: TileMeshArg) -> Self {
+        match a {
+            TileMeshArg::Grid => Self::Grid,
+            TileMeshArg::Rqt => Self::Rqt,
+            TileMeshArg::Tin => Self::Tin,
+        }
+    }
 }
 
 /// What both benchmarks take.
@@ -200,12 +229,19 @@ fn run() -> anyhow::Result<()> {
             output,
             z_quantum,
             tile_size,
+            tile_mesh,
             dem,
         } => {
             relief_proto::tile::TileShape::new(2, 2, tile_size)?;
             let d = dem.load(&input).context("cannot load the DEM")?;
-            let rep = preprocess::build_store(&d, &output, z_quantum, tile_size, !dem.quiet)
-                .context("cannot build the store")?;
+            let opts = preprocess::BuildOptions {
+                quantum: z_quantum,
+                tile_size,
+                tile_mesh: tile_mesh.into(),
+                progress: !dem.quiet,
+            };
+            let rep =
+                preprocess::build_store(&d, &output, &opts).context("cannot build the store")?;
             let samples = d.width as f64 * d.height as f64;
             tracing::info!(
                 "wrote {} ({} bytes): {}x{} samples, tree built in {:.2} s ({:.1} M samples/s), tiles in {:.2} s",
@@ -264,6 +300,7 @@ fn run() -> anyhow::Result<()> {
                     run,
                     crack,
                     tile_size,
+                    tile_mesh,
                 },
         } => {
             relief_proto::tile::TileShape::new(2, 2, tile_size)?;
@@ -273,6 +310,7 @@ fn run() -> anyhow::Result<()> {
                 tau: run.tau,
                 crack: crack.into(),
                 tile_size,
+                tile_mesh: tile_mesh.into(),
                 px_every: run.px_every,
                 poses: run.poses.map(|n| n as usize),
                 progress: !run.dem_args.quiet,

@@ -2,6 +2,7 @@
 
 use crate::dem::Dem;
 use crate::store::{StoreError, StoreInput, StoreMeta, write_store};
+use relief_proto::tile::body::MeshKind;
 use std::path::Path;
 
 /// What a build produced.
@@ -54,42 +55,57 @@ pub fn check_quantum(q: f64, lo: f64, hi: f64) -> Result<(), String> {
     Ok(())
 }
 
-/// Builds the vertex-quadtree store of `dem` at `path`.
-pub fn build_store(
-    dem: &Dem,
-    path: &Path,
-    quantum: Option<f64>,
-    tile_size: u32,
-    progress: bool,
-) -> Result<BuildReport, StoreError> {
-    build(dem, path, quantum, tile_size, progress, None)
+/// How to build a store.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildOptions {
+    /// Metres per stored height unit (`None`: [`default_quantum`]).
+    pub quantum: Option<f64>,
+    /// Cells per side of the tile pyramid's tiles.
+    pub tile_size: u32,
+    /// The tile pyramid's mesh kind.
+    pub tile_mesh: MeshKind,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+impl Default for BuildOptions {
+    /// The default quantum, 64-cell grid tiles, no progress bar.
+    fn default() -> Self {
+        BuildOptions {
+            quantum: None,
+            tile_size: crate::store::DEFAULT_TILE_SIZE,
+            tile_mesh: MeshKind::Grid,
+            progress: false,
+        }
+    }
+}
+
+/// Builds the store of `dem` (the vertex quadtree and the tile pyramid) at `path`.
+pub fn build_store(dem: &Dem, path: &Path, opts: &BuildOptions) -> Result<BuildReport, StoreError> {
+    build(dem, path, opts, None)
 }
 
 /// Builds the store of `dem` at `path` for the server's cache, recording `cache_key` (see
-/// [`crate::store::StoreMeta::cache_key`]); default quantum and tile size.
+/// [`crate::store::StoreMeta::cache_key`]); default quantum, tile size and mesh.
 pub fn build_cached_store(
     dem: &Dem,
     path: &Path,
     cache_key: &str,
 ) -> Result<BuildReport, StoreError> {
-    build(
-        dem,
-        path,
-        None,
-        crate::store::DEFAULT_TILE_SIZE,
-        true,
-        Some(cache_key.to_string()),
-    )
+    let opts = BuildOptions {
+        progress: true,
+        ..BuildOptions::default()
+    };
+    build(dem, path, &opts, Some(cache_key.to_string()))
 }
 
 fn build(
     dem: &Dem,
     path: &Path,
-    quantum: Option<f64>,
-    tile_size: u32,
-    progress: bool,
+    opts: &BuildOptions,
     cache_key: Option<String>,
 ) -> Result<BuildReport, StoreError> {
+    let (quantum, tile_size, progress) = (opts.quantum, opts.tile_size, opts.progress);
     let quantum = quantum.unwrap_or_else(|| default_quantum(dem));
     let voids: Vec<bool> = (0..dem.heights.len()).map(|i| dem.is_void(i)).collect();
     let (lo, hi) = dem
@@ -113,6 +129,7 @@ fn build(
             height_max: hi as f64,
             void_count: voids.iter().filter(|v| **v).count() as u64,
             cache_key,
+            tile_mesh: opts.tile_mesh.name().into(),
         },
     };
     let bar = crate::bench::progress_bar(progress, 1000, "tree and tiles");
@@ -130,6 +147,13 @@ fn build(
 mod tests {
     use super::*;
 
+    fn opts(quantum: Option<f64>) -> BuildOptions {
+        BuildOptions {
+            quantum,
+            ..BuildOptions::default()
+        }
+    }
+
     #[test]
     fn a_quantum_that_would_corrupt_heights_is_refused() {
         // Issue 12: at 1e-9 m every height became 2.147 m (clamped), at 1e9 m 0 m.
@@ -137,13 +161,13 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("q.relief");
         for (q, needle) in [(1e-9, "24-bit"), (1e9, "height range"), (-1.0, "positive")] {
-            let e = build_store(&d, &path, Some(q), 64, false)
+            let e = build_store(&d, &path, &opts(Some(q)))
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(needle), "{q}: {e}");
             assert!(!path.exists());
         }
-        assert!(build_store(&d, &path, Some(0.01), 64, false).is_ok());
+        assert!(build_store(&d, &path, &opts(Some(0.01))).is_ok());
         assert!(
             check_quantum(1.0, 5.0, 5.0).is_ok(),
             "a flat terrain takes any quantum"

@@ -28,14 +28,7 @@ pub fn test_store() -> &'static Path {
         let dir = tempfile::tempdir().expect("temp dir");
         let path = dir.path().join("fuji.relief");
         let d = relief_server::dem::embedded_default().expect("embedded DEM");
-        relief_server::preprocess::build_store(
-            &d,
-            &path,
-            None,
-            relief_server::store::DEFAULT_TILE_SIZE,
-            false,
-        )
-        .expect("store");
+        relief_server::preprocess::build_store(&d, &path, &Default::default()).expect("store");
         (dir, path)
     });
     p

@@ -25,7 +25,7 @@ use tokio::io::AsyncWriteExt;
 async fn setup(dir: &std::path::Path) -> (TestServer, Vec<u8>, usize) {
     let store = dir.join("s2049.relief");
     let d = relief_server::dem::load("synthetic:2049", &Default::default()).unwrap();
-    relief_server::preprocess::build_store(&d, &store, None, 64, false).unwrap();
+    relief_server::preprocess::build_store(&d, &store, &Default::default()).unwrap();
     let server = TestServer::start_with(ServeConfig {
         source: TerrainSource::Store(store),
         addr: "127.0.0.1:0".parse().unwrap(),

@@ -161,7 +161,11 @@ async fn tiles_show_no_cracks_with_patches_or_skirts_and_cracks_without() {
     let dir = tempfile::tempdir().unwrap();
     let store = dir.path().join("fuji16.relief");
     let dem = relief_server::dem::embedded_default().unwrap();
-    relief_server::preprocess::build_store(&dem, &store, None, TILE, false).unwrap();
+    let opts = relief_server::preprocess::BuildOptions {
+        tile_size: TILE,
+        ..Default::default()
+    };
+    relief_server::preprocess::build_store(&dem, &store, &opts).unwrap();
     let built = t0.elapsed();
     let server = TestServer::start_with(ServeConfig {
         source: TerrainSource::Store(store),

@@ -253,6 +253,7 @@ mod tests {
             tile: t,
             span,
             z: vec![100; span.vertex_count()],
+            irregular: None,
             patches: Patches {
                 dropped: vec![Dropped {
                     a: 0,
@@ -296,6 +297,7 @@ mod tests {
             tile: t,
             span,
             z,
+            irregular: None,
             patches: Patches::default(),
         };
         let m = TileMesh::of(&geom, &tile, Some(3.0));

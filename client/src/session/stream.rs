@@ -9,9 +9,8 @@ use relief_proto::mirror::{Change, Mirror};
 use relief_proto::msg::{CrackMode, TileStreamParams, Welcome, WireDelta};
 use relief_proto::snapshot::Snapshot;
 use relief_proto::terrain::TerrainGeometry;
-use relief_proto::tile::body::{grid_height, skirt_triangle_count};
+use relief_proto::tile::TileSetInfo;
 use relief_proto::tile::mirror::{TileData, TileMirror};
-use relief_proto::tile::{TileSetInfo, TileSpan};
 use rustc_hash::FxHashMap;
 
 /// The vertex stream's client state.
@@ -188,11 +187,6 @@ impl StreamState {
     }
 }
 
-/// Triangles of the grid mesh over `span`.
-fn grid_triangle_count(span: &TileSpan) -> usize {
-    2 * (span.nx() as usize - 1) * (span.ny() as usize - 1)
-}
-
 impl TileState {
     /// The pyramid and its level errors.
     pub fn info(&self) -> &TileSetInfo {
@@ -234,16 +228,15 @@ impl TileState {
                 && r <= s.rows.1 as f32)
                 .then_some(t)
         })?;
-        let z: Vec<f32> = t.z.iter().map(|&q| q as f32).collect();
-        Some(grid_height(&t.span, &z, c, r) * geom.z_quantum)
+        Some(t.height_at(c, r)? * geom.z_quantum)
     }
 
     /// Triangles tile `t` draws: its mesh plus its patches or skirts.
     fn triangles_of(&self, t: &TileData) -> usize {
-        grid_triangle_count(&t.span)
+        t.triangle_count()
             + match self.params.crack {
                 CrackMode::Patches => t.patches.triangle_count(),
-                CrackMode::Skirts => skirt_triangle_count(&t.span),
+                CrackMode::Skirts => t.skirt_triangle_count(),
                 CrackMode::None => 0,
             }
     }

@@ -4,18 +4,23 @@
 //! ([`decode_patches`]; against the decoded heights, or flat ones when the mesh is refused, so
 //! that patch blobs are explored on their own too).
 //!
-//! Whatever decodes is re-encoded and decoded again to the same value. The delta's re-encoding
+//! Whatever decodes is re-encoded and decoded again to the same value (`rqt` and `tin` meshes
+//! too: their vertices must lie in the tile and their triangles name them). The delta's re-encoding
 //! must be the shortest form of the input ([`crate::assert_canonical`]); a patch blob's must be
 //! no longer than the input (orders are chosen to minimise it). A mesh re-encodes to heights
 //! equal to the decoded ones (the encoder picks its own `zmin` and order, so the bytes may
 //! differ), and re-encoding that gives the same bytes. Patches must name vertices of the tile.
 
 use crate::Header;
+use relief_proto::tile::body::irregular::canonical;
+use relief_proto::tile::body::rqt::encode_rqt;
 use relief_proto::tile::body::{
-    decode_mesh, decode_patches, encode_mesh, encode_patches, find_patches,
+    DecodedMesh, IrregularMesh, MeshKind, decode_mesh, decode_patches, encode_irregular,
+    encode_mesh, encode_patches, find_patches,
 };
 use relief_proto::tile::delta::{AddedTile, TileBlobs, TileDelta};
-use relief_proto::tile::{TileId, TileShape};
+use relief_proto::tile::{TileId, TileShape, TileSpan};
+use std::collections::HashMap;
 
 /// Decodes and round-trips one input; true if the tile delta decoded.
 pub fn check(data: &[u8]) -> bool {
@@ -49,13 +54,23 @@ fn tile_blobs(shape: &TileShape, t: TileId, blobs: &TileBlobs) {
     let span = shape.span(t);
     let n = span.vertex_count();
     let z = match decode_mesh(&span, &blobs.mesh) {
-        Ok(z) => {
+        Ok(DecodedMesh {
+            z,
+            irregular: None,
+        }) => {
             assert_eq!(z.len(), n);
             let mesh = encode_mesh(&span, &z);
-            assert_eq!(decode_mesh(&span, &mesh).as_ref(), Ok(&z));
             let again = decode_mesh(&span, &mesh).expect("an encoded mesh");
-            assert_eq!(encode_mesh(&span, &again), mesh);
+            assert_eq!(again.z, z);
+            assert_eq!(encode_mesh(&span, &again.z), mesh);
             z
+        }
+        Ok(DecodedMesh {
+            z,
+            irregular: Some(m),
+        }) => {
+            irregular_round_trip(&span, &m, &z);
+            return;
         }
         Err(_) => vec![0; n],
     };
@@ -73,6 +88,33 @@ fn tile_blobs(shape: &TileShape, t: TileId, blobs: &TileBlobs) {
         blob.len()
     );
     assert_eq!(decode_patches(shape, t, &z, &blob), Ok(patches));
+}
+
+/// Re-encodes a decoded `rqt` or `tin` mesh and checks it decodes to the same mesh (`tin` in its
+/// canonical order). Vertices lie in the tile and triangles name them.
+fn irregular_round_trip(span: &TileSpan, m: &IrregularMesh, z: &[i32]) {
+    let (w, h) = (span.cols.1 - span.cols.0, span.rows.1 - span.rows.0);
+    assert_eq!(m.at.len(), z.len());
+    assert!(m.at.iter().all(|p| p[0] <= w && p[1] <= h));
+    assert!(m.triangles.iter().flatten().all(|&v| (v as usize) < z.len()));
+    let (blob, want) = match m.kind {
+        MeshKind::Rqt => {
+            let s = span.stride;
+            let height: HashMap<[u32; 2], i32> =
+                m.at.iter().map(|p| p.map(|v| v / s)).zip(z.iter().copied()).collect();
+            let blob = encode_rqt(
+                span,
+                |p| height.contains_key(&p),
+                |p| height.get(&p).copied().unwrap_or(0),
+            )
+            .expect("a decoded rqt span is square");
+            (blob, (m.clone(), z.to_vec()))
+        }
+        _ => (encode_irregular(m, z), canonical(m, z)),
+    };
+    let again = decode_mesh(span, &blob).expect("an encoded mesh");
+    assert_eq!(again.irregular.as_ref(), Some(&want.0));
+    assert_eq!(again.z, want.1);
 }
 
 /// The blobs of tile `t` over a made-up terrain: a tilted plane with bumps, in z quanta.

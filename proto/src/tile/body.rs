@@ -27,8 +27,12 @@
 //! height at `B` — then one bit per coarser-level segment that holds an own vertex (tiles below
 //! level 0): 1 for a raised patch.
 
+pub mod irregular;
+pub mod rqt;
+
 use super::{EDGES, Edge, TileId, TileShape, TileSpan};
 use crate::bits::{BitReader, BitWriter, best_order};
+pub use irregular::{IrregularMesh, encode_irregular};
 
 /// A body that does not decode for its tile.
 #[derive(Debug, thiserror::Error, PartialEq, Eq)]
@@ -45,13 +49,60 @@ pub enum TileBodyError {
     /// Whole bytes remain after the body.
     #[error("tile body has {0} bytes after its end")]
     Trailing(usize),
+    /// An irregular mesh's vertex or triangle count is impossible for its tile.
+    #[error("tile mesh has an impossible count: {0} vertices, {1} triangles")]
+    Counts(u64, u64),
+    /// An irregular mesh's vertex lies outside its tile.
+    #[error("tile mesh vertex outside the tile")]
+    Outside,
+    /// An irregular mesh's triangle names a vertex out of order or out of range, or leaves a
+    /// vertex unused.
+    #[error("tile mesh triangle index out of order or range")]
+    Index,
+    /// A patch blob where the mesh kind carries none.
+    #[error("tile mesh kind {0} carries no patch blob")]
+    PatchesUnexpected(u32),
 }
 
 /// Mesh kinds a body can hold.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum MeshKind {
     /// A regular grid of the tile's samples with a fixed index pattern.
+    #[default]
     Grid = 0,
+    /// Paper 002's restricted-quadtree mesh ([`rqt`] encoding).
+    Rqt = 1,
+    /// Paper 003's greedy-insertion Delaunay TIN ([`irregular`] encoding).
+    Tin = 2,
+}
+
+impl MeshKind {
+    /// The kind with wire code `code`.
+    pub fn from_code(code: u32) -> Option<MeshKind> {
+        [MeshKind::Grid, MeshKind::Rqt, MeshKind::Tin]
+            .into_iter()
+            .find(|k| *k as u32 == code)
+    }
+
+    /// Its name, as in `build --tile-mesh` and `/v1/terrain`.
+    pub fn name(self) -> &'static str {
+        match self {
+            MeshKind::Grid => "grid",
+            MeshKind::Rqt => "rqt",
+            MeshKind::Tin => "tin",
+        }
+    }
+}
+
+/// A decoded mesh blob: the vertex heights, and for an irregular mesh its vertices and
+/// triangles.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DecodedMesh {
+    /// Vertex heights, z quanta: row-major over the span for a grid, else one per vertex of
+    /// `irregular`.
+    pub z: Vec<i32>,
+    /// The vertices and triangles of an irregular mesh (`None` for a grid).
+    pub irregular: Option<IrregularMesh>,
 }
 
 /// A dropped patch: the triangle from two of the tile's edge vertices down to a finer sample.
@@ -327,13 +378,32 @@ pub fn encode_mesh(span: &TileSpan, z: &[i32]) -> Vec<u8> {
     w.finish()
 }
 
-/// Unpacks a mesh blob: the vertex heights of the grid over `span`.
-pub fn decode_mesh(span: &TileSpan, bytes: &[u8]) -> Result<Vec<i32>, TileBodyError> {
+/// Unpacks a mesh blob of any kind over `span`.
+pub fn decode_mesh(span: &TileSpan, bytes: &[u8]) -> Result<DecodedMesh, TileBodyError> {
     let mut r = BitReader::new(bytes);
-    let kind = r.get(2).ok_or(TileBodyError::Truncated)?;
-    if kind != MeshKind::Grid as u32 {
-        return Err(TileBodyError::MeshKind(kind));
+    let code = r.get(2).ok_or(TileBodyError::Truncated)?;
+    match MeshKind::from_code(code) {
+        Some(MeshKind::Grid) => Ok(DecodedMesh {
+            z: decode_grid(span, r)?,
+            irregular: None,
+        }),
+        Some(kind) => {
+            let (mesh, z) = if kind == MeshKind::Rqt {
+                rqt::decode_rqt(span, r)?
+            } else {
+                irregular::decode_irregular(span, kind, r)?
+            };
+            Ok(DecodedMesh {
+                z,
+                irregular: Some(mesh),
+            })
+        }
+        None => Err(TileBodyError::MeshKind(code)),
     }
+}
+
+/// The vertex heights of a grid mesh blob over `span`, from `r` (just past the kind).
+fn decode_grid(span: &TileSpan, mut r: BitReader<'_>) -> Result<Vec<i32>, TileBodyError> {
     let zmin = r.get(32).ok_or(TileBodyError::Truncated)? as i32 as i64;
     let k = r.get(4).ok_or(TileBodyError::Truncated)?;
     let nx = span.nx() as usize;

@@ -10,9 +10,10 @@
 //! (which may not be morphing) and the crack patches were computed for them, so morphing them
 //! could open cracks that no patch closes.
 
-use super::EDGES;
-use super::body::{cell_height, grid_triangles, skirt_triangle_count};
+use super::body::IrregularMesh;
+use super::body::{cell_height, grid_height, grid_triangles, skirt_triangle_count};
 use super::mirror::TileData;
+use super::{EDGES, Edge};
 use crate::tree::WorldFrame;
 
 /// A tile's triangles.
@@ -36,14 +37,13 @@ pub fn tile_triangles(
     tile: &TileData,
     skirt: Option<f32>,
 ) -> TileTriangles {
-    let span = &tile.span;
     let place = |c: u32, r: u32, zq: i32| {
         let (x, y) = frame.to_world(c as f32, r as f32);
         [x, y, zq as f32 * z_quantum]
     };
-    let mut positions: Vec<[f32; 3]> = (0..span.vertex_count() as u32)
+    let mut positions: Vec<[f32; 3]> = (0..tile.z.len() as u32)
         .map(|v| {
-            let (c, r) = span.vertex_pos(v);
+            let (c, r) = tile.vertex_pos(v);
             place(c, r, tile.z[v as usize])
         })
         .collect();
@@ -55,9 +55,9 @@ pub fn tile_triangles(
     patches.extend(tile.patches.raised.iter().copied());
     let mut skirts = Vec::new();
     if let Some(depth) = skirt {
-        skirts.reserve(skirt_triangle_count(span));
+        skirts.reserve(tile.skirt_triangle_count());
         for e in EDGES {
-            let vs = span.edge_vertices(e);
+            let vs = tile.edge_vertices(e);
             let base = positions.len() as u32;
             for &v in &vs {
                 let p = positions[v as usize];
@@ -73,19 +73,199 @@ pub fn tile_triangles(
     }
     TileTriangles {
         positions,
-        mesh: grid_triangles(span),
+        mesh: tile.triangles(),
         patches,
         skirts,
     }
 }
 
+impl TileData {
+    /// Grid position (column, row) of vertex `v`.
+    pub fn vertex_pos(&self, v: u32) -> (u32, u32) {
+        match &self.irregular {
+            None => self.span.vertex_pos(v),
+            Some(m) => {
+                let p = m.at[v as usize];
+                (self.span.cols.0 + p[0], self.span.rows.0 + p[1])
+            }
+        }
+    }
+
+    /// The mesh's triangles, counter-clockwise seen from above.
+    pub fn triangles(&self) -> Vec<[u32; 3]> {
+        match &self.irregular {
+            None => grid_triangles(&self.span),
+            Some(m) => m.triangles.clone(),
+        }
+    }
+
+    /// The mesh's triangle count.
+    pub fn triangle_count(&self) -> usize {
+        match &self.irregular {
+            None => 2 * (self.span.nx() as usize - 1) * (self.span.ny() as usize - 1),
+            Some(m) => m.triangles.len(),
+        }
+    }
+
+    /// The vertices on `edge`, in its direction (west to east, north to south).
+    pub fn edge_vertices(&self, edge: Edge) -> Vec<u32> {
+        let Some(m) = &self.irregular else {
+            return self.span.edge_vertices(edge);
+        };
+        let (w, h) = (
+            self.span.cols.1 - self.span.cols.0,
+            self.span.rows.1 - self.span.rows.0,
+        );
+        // (whether a vertex is on the edge, its position along it)
+        let on = |p: [u32; 2]| match edge {
+            Edge::North => (p[1] == 0, p[0]),
+            Edge::South => (p[1] == h, p[0]),
+            Edge::West => (p[0] == 0, p[1]),
+            Edge::East => (p[0] == w, p[1]),
+        };
+        let mut vs: Vec<(u32, u32)> = (0..m.at.len() as u32)
+            .filter_map(|v| {
+                let (yes, along) = on(m.at[v as usize]);
+                yes.then_some((along, v))
+            })
+            .collect();
+        vs.sort_unstable();
+        vs.into_iter().map(|(_, v)| v).collect()
+    }
+
+    /// Skirt triangles: two per edge segment on all four edges.
+    pub fn skirt_triangle_count(&self) -> usize {
+        match &self.irregular {
+            None => skirt_triangle_count(&self.span),
+            Some(_) => EDGES
+                .iter()
+                .map(|&e| 2 * self.edge_vertices(e).len().saturating_sub(1))
+                .sum(),
+        }
+    }
+
+    /// Height of the mesh, z quanta, at grid position `(col, row)`; `None` outside the tile.
+    /// On an irregular mesh this tests the triangles one by one.
+    pub fn height_at(&self, col: f32, row: f32) -> Option<f32> {
+        let s = &self.span;
+        let inside = (s.cols.0 as f32..=s.cols.1 as f32).contains(&col)
+            && (s.rows.0 as f32..=s.rows.1 as f32).contains(&row);
+        if !inside {
+            return None;
+        }
+        let Some(m) = &self.irregular else {
+            let z: Vec<f32> = self.z.iter().map(|&q| q as f32).collect();
+            return Some(grid_height(s, &z, col, row));
+        };
+        let p = [
+            f64::from(col) - f64::from(s.cols.0),
+            f64::from(row) - f64::from(s.rows.0),
+        ];
+        m.triangles.iter().find_map(|t| self.on_triangle(m, t, p))
+    }
+
+    /// Height, z quanta, of irregular triangle `t` at `p` (offsets from the span's first
+    /// sample), when `p` lies on it.
+    fn on_triangle(&self, m: &IrregularMesh, t: &[u32; 3], p: [f64; 2]) -> Option<f32> {
+        // Signed areas in (col, row) axes; triangles are clockwise there.
+        let cross = |a: [f64; 2], b: [f64; 2], p: [f64; 2]| {
+            (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])
+        };
+        let v = t.map(|i| {
+            let q = m.at[i as usize];
+            [f64::from(q[0]), f64::from(q[1])]
+        });
+        let d = cross(v[0], v[1], v[2]);
+        if d == 0.0 {
+            return None;
+        }
+        let l = [
+            cross(v[1], v[2], p) / d,
+            cross(v[2], v[0], p) / d,
+            cross(v[0], v[1], p) / d,
+        ];
+        l.iter().all(|&w| w >= -1e-9).then(|| {
+            let z = t.map(|i| f64::from(self.z[i as usize]));
+            (l[0] * z[0] + l[1] * z[1] + l[2] * z[2]) as f32
+        })
+    }
+}
+
+/// A tile's surface for many height look-ups: an irregular mesh's triangles bucketed on a
+/// coarse grid over the tile, so that a look-up tests a few triangles, not all.
+pub struct Surface<'a> {
+    tile: &'a TileData,
+    /// Buckets per side.
+    n: usize,
+    /// Sample offsets per bucket side.
+    cell: [f64; 2],
+    /// Triangle indices by bucket, row-major.
+    buckets: Vec<Vec<u32>>,
+}
+
+impl<'a> Surface<'a> {
+    /// The surface of `tile`.
+    pub fn new(tile: &'a TileData) -> Surface<'a> {
+        let s = &tile.span;
+        let size = [
+            f64::from(s.cols.1 - s.cols.0).max(1.0),
+            f64::from(s.rows.1 - s.rows.0).max(1.0),
+        ];
+        let n = 16;
+        let cell = size.map(|v| v / n as f64);
+        let mut buckets = vec![Vec::new(); n * n];
+        if let Some(m) = &tile.irregular {
+            let bucket = |v: f64, axis: usize| ((v / cell[axis]) as usize).min(n - 1);
+            for (k, t) in m.triangles.iter().enumerate() {
+                let ps = t.map(|i| m.at[i as usize].map(f64::from));
+                let lo =
+                    [0, 1].map(|a| bucket(ps.iter().map(|p| p[a]).fold(f64::MAX, f64::min), a));
+                let hi =
+                    [0, 1].map(|a| bucket(ps.iter().map(|p| p[a]).fold(f64::MIN, f64::max), a));
+                for j in lo[1]..=hi[1] {
+                    for i in lo[0]..=hi[0] {
+                        buckets[j * n + i].push(k as u32);
+                    }
+                }
+            }
+        }
+        Surface {
+            tile,
+            n,
+            cell,
+            buckets,
+        }
+    }
+
+    /// As [`TileData::height_at`].
+    pub fn height_at(&self, col: f32, row: f32) -> Option<f32> {
+        let Some(m) = &self.tile.irregular else {
+            return self.tile.height_at(col, row);
+        };
+        let s = &self.tile.span;
+        let p = [
+            f64::from(col) - f64::from(s.cols.0),
+            f64::from(row) - f64::from(s.rows.0),
+        ];
+        if p[0] < 0.0 || p[1] < 0.0 {
+            return None;
+        }
+        let b = [0, 1].map(|a| ((p[a] / self.cell[a]) as usize).min(self.n - 1));
+        self.buckets[b[1] * self.n + b[0]]
+            .iter()
+            .find_map(|&k| self.tile.on_triangle(m, &m.triangles[k as usize], p))
+    }
+}
+
 /// The morph target of every vertex of `tile`, z quanta: the parent's mesh height for interior
 /// vertices, the vertex's own height on the tile's boundary (and everywhere on the root tile).
+/// Irregular meshes do not morph (their targets are their own heights): their parent's mesh is
+/// not a subset of their vertices.
 pub fn morph_targets(tile: &TileData) -> Vec<f32> {
     let span = &tile.span;
     let (nx, ny) = (span.nx() as usize, span.ny() as usize);
     let own: Vec<f32> = tile.z.iter().map(|&z| z as f32).collect();
-    if tile.tile.level == 0 {
+    if tile.tile.level == 0 || tile.irregular.is_some() {
         return own;
     }
     // The parent's grid lines among the tile's: every other one, and the last.
@@ -125,7 +305,7 @@ pub fn morph_targets(tile: &TileData) -> Vec<f32> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tile::body::{Patches, grid_height};
+    use crate::tile::body::Patches;
     use crate::tile::{TileId, TileShape};
 
     #[test]
@@ -145,6 +325,7 @@ mod tests {
                 tile: t,
                 span,
                 z: z.clone(),
+                irregular: None,
                 patches: Patches::default(),
             };
             let m = morph_targets(&data);

@@ -2,7 +2,9 @@
 //! from tile deltas alone and checked by digest. A thin client needs nothing else: each held
 //! tile's [`TileData`] gives its triangles ([`super::geometry`]), patches included.
 
-use super::body::{Patches, TileBodyError, decode_mesh, decode_patches};
+use super::body::{
+    DecodedMesh, IrregularMesh, Patches, TileBodyError, decode_mesh, decode_patches,
+};
 use super::cache::{TileCache, TileSetError};
 use super::delta::{TileDelta, TileDeltaError};
 use super::{TileId, TileShape, TileSpan};
@@ -17,8 +19,11 @@ pub struct TileData {
     pub tile: TileId,
     /// The samples it covers.
     pub span: TileSpan,
-    /// Vertex heights, z quanta, row-major over the span.
+    /// Vertex heights, z quanta: row-major over the span for a grid mesh, else one per vertex
+    /// of `irregular`.
     pub z: Vec<i32>,
+    /// The vertices and triangles of an irregular (`rqt` or `tin`) mesh; `None` for a grid.
+    pub irregular: Option<IrregularMesh>,
     /// Its crack patches (empty unless the session draws patches).
     pub patches: Patches,
 }
@@ -126,17 +131,23 @@ impl TileMirror {
                 .tile(a.tile)
                 .ok_or(TileMirrorError::Delta(TileDeltaError::Tile(a.tile as u64)))?;
             let span = self.shape.span(tile);
-            let z = decode_mesh(&span, &b.mesh).map_err(|e| TileMirrorError::Body(a.tile, e))?;
-            let patches = if self.crack == CrackMode::Patches {
-                decode_patches(&self.shape, tile, &z, &b.patches)
-                    .map_err(|e| TileMirrorError::Body(a.tile, e))?
-            } else {
-                Patches::default()
+            let body_err = |e| TileMirrorError::Body(a.tile, e);
+            let DecodedMesh { z, irregular } = decode_mesh(&span, &b.mesh).map_err(body_err)?;
+            let patches = match &irregular {
+                // Irregular meshes carry no patch blob (tin's shared borders need none).
+                Some(m) if !b.patches.is_empty() => {
+                    return Err(body_err(TileBodyError::PatchesUnexpected(m.kind as u32)));
+                }
+                None if self.crack == CrackMode::Patches => {
+                    decode_patches(&self.shape, tile, &z, &b.patches).map_err(body_err)?
+                }
+                _ => Patches::default(),
             };
             decoded.push(Some(TileData {
                 tile,
                 span,
                 z,
+                irregular,
                 patches,
             }));
         }

@@ -36,20 +36,24 @@ impl Flight {
         self
     }
 
-    /// Builds the store of `dem` (tiles of `tile_size` cells) in a temporary folder and the
+    /// Builds the store of `dem` (as `build` says) in a temporary folder and the
     /// camera path `path` over it. `px_every` `None` picks k so that at least 60 frames and
     /// about 20 M samples are measured.
     pub fn prepare(
         dem: &Dem,
         path: PathKind,
-        tile_size: u32,
+        build: preprocess::BuildOptions,
         px_every: Option<usize>,
         px_min_samples: u64,
         progress: bool,
     ) -> anyhow::Result<Flight> {
         let dir = tempfile::tempdir()?;
         let store_path = dir.path().join("bench.relief");
-        let built = preprocess::build_store(dem, &store_path, None, tile_size, progress)?;
+        let built = preprocess::build_store(
+            dem,
+            &store_path,
+            &preprocess::BuildOptions { progress, ..build },
+        )?;
         let store = Store::open(&store_path)?;
         let geom = store.geometry();
         let (w, h) = (geom.shape.width(), geom.shape.height());

@@ -150,7 +150,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
     let flight = Flight::prepare(
         dem,
         opts.path,
-        crate::store::DEFAULT_TILE_SIZE,
+        Default::default(),
         opts.px_every,
         opts.px_min_samples,
         opts.progress,

@@ -25,9 +25,9 @@ use glam::Vec3;
 use relief_proto::codec;
 use relief_proto::msg::{CrackMode, ServerMsg, SessionDelta, TileStreamParams, WireDelta};
 use relief_proto::path::{PATH_HZ, PathKind};
-use relief_proto::tile::body::grid_height;
+use relief_proto::tile::body::MeshKind;
 use relief_proto::tile::delta::put_varint;
-use relief_proto::tile::geometry::tile_triangles;
+use relief_proto::tile::geometry::{Surface, tile_triangles};
 use relief_proto::tile::mirror::TileMirror;
 use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::view::{Lens, ViewState};
@@ -46,6 +46,8 @@ pub struct TileBenchOptions {
     pub crack: CrackMode,
     /// Tile size, cells.
     pub tile_size: u32,
+    /// The tiles' mesh kind.
+    pub tile_mesh: MeshKind,
     /// Measure pixel error on every k-th frame (`None`: at least 60 frames).
     pub px_every: Option<usize>,
     /// Minimum samples of each measured frame's lattice.
@@ -63,6 +65,7 @@ impl Default for TileBenchOptions {
             tau: 1.0,
             crack: CrackMode::Patches,
             tile_size: crate::store::DEFAULT_TILE_SIZE,
+            tile_mesh: MeshKind::Grid,
             px_every: None,
             px_min_samples: 4_000_000,
             poses: None,
@@ -84,6 +87,8 @@ pub struct TileBenchReport {
     pub path: String,
     /// `patches`, `skirts` or `none`.
     pub crack: String,
+    /// The tiles' mesh kind: `grid`, `rqt` or `tin`.
+    pub tile_mesh: String,
     /// Poses flown.
     pub frames: usize,
     /// Split threshold, pixels.
@@ -201,7 +206,11 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
     let flight = Flight::prepare(
         dem,
         opts.path,
-        opts.tile_size,
+        crate::preprocess::BuildOptions {
+            tile_size: opts.tile_size,
+            tile_mesh: opts.tile_mesh,
+            ..Default::default()
+        },
         opts.px_every,
         opts.px_min_samples,
         opts.progress,
@@ -285,15 +294,17 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         }
 
         let active = mirror.active();
-        let (patch, skirt) = crack_triangles(shape, store.tile_records(), &active);
-        let mesh_tris: u64 = active
-            .iter()
-            .filter_map(|&i| shape.tile(i))
-            .map(|t| {
-                let sp = shape.span(t);
-                2 * (sp.nx() as u64 - 1) * (sp.ny() as u64 - 1)
-            })
-            .sum();
+        let (patch, _) = crack_triangles(shape, store.tile_records(), &active);
+        let (mesh_tris, skirt) =
+            active
+                .iter()
+                .filter_map(|&i| mirror.tile(i))
+                .fold((0u64, 0u64), |(m, s), t| {
+                    (
+                        m + t.triangle_count() as u64,
+                        s + t.skirt_triangle_count() as u64,
+                    )
+                });
         let extra = match opts.crack {
             CrackMode::Patches => patch,
             CrackMode::Skirts => skirt,
@@ -322,6 +333,27 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
                 &mut r.morphed_pops,
             );
         }
+        if f == 0 && std::env::var("TILEDEBUG").is_ok() {
+            for &i in &active {
+                let t = mirror.tile(i).unwrap();
+                let sf = Surface::new(t);
+                let mut worst = 0f32;
+                for rr in t.span.rows.0..=t.span.rows.1 {
+                    for c in t.span.cols.0..=t.span.cols.1 {
+                        let z = sf.height_at(c as f32, rr as f32).unwrap() * geom.z_quantum;
+                        worst = worst.max((z - dem.heights[(rr * w + c) as usize]).abs());
+                    }
+                }
+                let se = engine.screen_error(&view, i);
+                eprintln!(
+                    "tile {:?} err {} rec {} se {}",
+                    t.tile,
+                    worst,
+                    store.tile_records()[i as usize].error,
+                    se
+                );
+            }
+        }
         if f % flight.px_every == 0 {
             let tris = world_triangles(&mirror, &active, geom);
             r.px.measure(&flight, dem, &tris, f, &lens);
@@ -340,6 +372,7 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         height: h,
         path: format!("{:?}", opts.path).to_lowercase(),
         crack: format!("{:?}", opts.crack).to_lowercase(),
+        tile_mesh: opts.tile_mesh.name().into(),
         frames,
         tau_px: opts.tau,
         tile_size: opts.tile_size,
@@ -416,10 +449,7 @@ fn pops(
 ) {
     let q = geom.z_quantum;
     let old: Vec<_> = removed.iter().filter_map(|&i| mirror.tile(i)).collect();
-    let old_z: Vec<Vec<f32>> = old
-        .iter()
-        .map(|t| t.z.iter().map(|&z| z as f32 * q).collect())
-        .collect();
+    let surfaces: Vec<Surface> = old.iter().map(|t| Surface::new(t)).collect();
     for &i in added {
         let Some(t) = mirror.tile(i) else { continue };
         let sp = t.span;
@@ -434,24 +464,27 @@ fn pops(
             .collect();
         let mut worst: Option<f64> = None;
         let mut worst_edge: Option<f64> = None;
-        let (nx, ny) = (sp.nx(), sp.ny());
-        for v in 0..sp.vertex_count() as u32 {
-            let (c, rr) = sp.vertex_pos(v);
+        for v in 0..t.z.len() as u32 {
+            let (c, rr) = t.vertex_pos(v);
             let Some(&k) = overlapping.iter().find(|&&k| {
                 let o = old[k].span;
                 (o.cols.0..=o.cols.1).contains(&c) && (o.rows.0..=o.rows.1).contains(&rr)
             }) else {
                 continue;
             };
-            let before = grid_height(&old[k].span, &old_z[k], c as f32, rr as f32);
+            let Some(before) = surfaces[k].height_at(c as f32, rr as f32) else {
+                continue;
+            };
+            let before = before * q;
             let (x, y) = geom.frame.to_world(c as f32, rr as f32);
             let now = Vec3::new(x, y, t.z[v as usize] as f32 * q);
             let was = Vec3::new(x, y, before);
             if let (Some(a), Some(b)) = (proj.project(now), proj.project(was)) {
                 let d = f64::from(a.distance(b));
                 worst = Some(worst.map_or(d, |m| m.max(d)));
-                let (i, j) = (v % nx, v / nx);
-                if i == 0 || j == 0 || i == nx - 1 || j == ny - 1 {
+                let on_edge =
+                    c == sp.cols.0 || c == sp.cols.1 || rr == sp.rows.0 || rr == sp.rows.1;
+                if on_edge {
                     worst_edge = Some(worst_edge.map_or(d, |m| m.max(d)));
                 }
             }

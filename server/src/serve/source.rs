@@ -165,6 +165,13 @@ pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, S
 mod tests {
     use super::*;
 
+    fn tiles16() -> preprocess::BuildOptions {
+        preprocess::BuildOptions {
+            tile_size: 16,
+            ..Default::default()
+        }
+    }
+
     #[test]
     fn the_embedded_terrain_is_built_once_then_reused() {
         let dir = tempfile::tempdir().unwrap();
@@ -194,7 +201,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC, &LoadOptions::default());
         let other = dem::load("synthetic:65:3", &LoadOptions::default()).unwrap();
-        preprocess::build_store(&other, &path, None, 16, false).unwrap();
+        preprocess::build_store(&other, &path, &tiles16()).unwrap();
         let foreign_id = Store::open(&path).unwrap().terrain_id();
         let s = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
         assert_ne!(s.terrain_id(), foreign_id);
@@ -208,7 +215,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("s.relief");
         let d = dem::load("synthetic:129:5", &LoadOptions::default()).unwrap();
-        preprocess::build_store(&d, &file, None, 16, false).unwrap();
+        preprocess::build_store(&d, &file, &tiles16()).unwrap();
         let s = open_terrain(&TerrainSource::Store(file.clone()), dir.path()).unwrap();
         let before: Vec<i32> = (0..129).map(|c| s.sample_z(c, 64)).collect();
         let len = std::fs::metadata(&file).unwrap().len();

@@ -21,6 +21,7 @@ use format::{HEADER_LEN, Header, META, NODES, TILE_DATA, TILES, VOIDS};
 use layout::{QuadLayout, rec_code, rec_z};
 use memmap2::Mmap;
 use relief_proto::terrain::TerrainGeometry;
+use relief_proto::tile::body::MeshKind;
 use relief_proto::tile::{TileSetInfo, TileShape};
 use relief_proto::tree::{NodeId, TreeShape};
 use serde::{Deserialize, Serialize};
@@ -72,7 +73,7 @@ pub enum StoreError {
 }
 
 /// Descriptive metadata kept in the store as JSON.
-#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct StoreMeta {
     /// Where the heights came from (file name or synthetic spec).
     pub source: String,
@@ -89,6 +90,36 @@ pub struct StoreMeta {
     /// that a store copied over the entry's name is not served as that DEM.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub cache_key: Option<String>,
+    /// The tile pyramid's mesh kind: `grid` (the default, and what stores without the field
+    /// hold), `rqt` or `tin`.
+    #[serde(default = "grid_name")]
+    pub tile_mesh: String,
+}
+
+fn grid_name() -> String {
+    MeshKind::Grid.name().into()
+}
+
+impl Default for StoreMeta {
+    /// Empty, with `grid` tiles.
+    fn default() -> Self {
+        StoreMeta {
+            source: String::new(),
+            crs: None,
+            height_min: 0.0,
+            height_max: 0.0,
+            void_count: 0,
+            cache_key: None,
+            tile_mesh: grid_name(),
+        }
+    }
+}
+
+/// The mesh kind named `name` (`grid`, `rqt` or `tin`).
+pub fn mesh_kind(name: &str) -> Option<MeshKind> {
+    [MeshKind::Grid, MeshKind::Rqt, MeshKind::Tin]
+        .into_iter()
+        .find(|k| k.name() == name)
 }
 
 /// The input to [`write_store`].
@@ -138,7 +169,13 @@ pub fn write_store(
     let arrays = build::build_arrays(&geom, input.heights, |f| progress(f / 2.0));
     let build_s = t0.elapsed().as_secs_f64();
     let t1 = std::time::Instant::now();
-    let pyramid = tiles::build_pyramid(&tshape, input.heights, input.z_quantum as f32, |f| {
+    let kind = mesh_kind(&input.meta.tile_mesh).ok_or_else(|| {
+        StoreError::Input(format!(
+            "tile mesh `{}` is unknown: use grid, rqt or tin",
+            input.meta.tile_mesh
+        ))
+    })?;
+    let pyramid = tiles::build_pyramid(&tshape, input.heights, input.z_quantum as f32, kind, |f| {
         progress(0.5 + f / 2.0)
     });
     let tiles_s = t1.elapsed().as_secs_f64();
@@ -319,8 +356,15 @@ impl Store {
             return Err(StoreError::Corrupt("data checksum mismatch".into()));
         }
         let (off, len) = header.sections[META];
-        let meta = serde_json::from_slice(&map[off as usize..(off + len) as usize])
+        let meta: StoreMeta = serde_json::from_slice(&map[off as usize..(off + len) as usize])
             .map_err(|e| StoreError::Corrupt(format!("metadata: {e}")))?;
+        if mesh_kind(&meta.tile_mesh).is_none() {
+            return Err(StoreError::Corrupt(format!(
+                "metadata: tile mesh `{}` is unknown",
+                meta.tile_mesh
+            )));
+        }
+        let mesh_name = meta.tile_mesh.clone();
         let mut store = Store {
             map,
             header,
@@ -330,7 +374,7 @@ impl Store {
             tile_info: TileSetInfo {
                 tile_size: tiles.tile_size(),
                 depth: tiles.depth(),
-                mesh: "grid".into(),
+                mesh: mesh_name,
                 level_errors: vec![0.0; tiles.depth() as usize + 1],
             },
             tiles,
@@ -449,6 +493,11 @@ impl Store {
     /// The tile pyramid's shape.
     pub fn tile_shape(&self) -> &TileShape {
         &self.tiles
+    }
+
+    /// The tile pyramid's mesh kind (checked when the store was opened).
+    pub fn tile_mesh(&self) -> MeshKind {
+        mesh_kind(&self.meta.tile_mesh).unwrap_or_default()
     }
 
     /// What tile clients are told of the pyramid.

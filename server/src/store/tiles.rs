@@ -1,8 +1,9 @@
 //! The tile pyramid of a store (DESIGN.md section 4; paper 001): for every tile its mesh blob,
 //! its crack-patch blob, its honest geometric error and its height bounds.
 //!
-//! - **Mesh**: `grid` (every tile vertex is a sample; [`relief_proto::tile::body`]). The mesh is
-//!   one pluggable step ([`mesh_tile`]): the next mesh kinds replace it and keep the rest.
+//! - **Mesh**: `grid` (every lattice vertex), `rqt` or `tin` ([`crate::lod::tile::mesh::pyramid`]
+//!   chooses the vertices, [`relief_proto::tile::body`] packs them). Adaptive stores carry no
+//!   crack patches: `tin` tiles share their border points, `rqt` tiles hang skirts.
 //! - **Geometric error**: the largest vertical distance, metres, between the tile's mesh and
 //!   every full-resolution sample it covers (the original heights, before quantisation), then
 //!   saturated up the pyramid (a tile's error is at least each child's), so that a selection by
@@ -14,9 +15,11 @@
 //!
 //! Voids need nothing here: they were filled smoothly before the build, as for the vertex tree.
 
+use crate::lod::tile::mesh::HeightGrid;
+use crate::lod::tile::mesh::pyramid::{Tolerances, irregular_error, mesh_tile};
 use bytemuck::{Pod, Zeroable};
 use relief_proto::tile::body::{
-    encode_mesh, encode_patches, find_patches, grid_height, skirt_triangle_count,
+    MeshKind, Patches, encode_patches, find_patches, grid_height, skirt_triangle_count,
 };
 use relief_proto::tile::{TileId, TileShape};
 
@@ -48,27 +51,16 @@ pub struct TilePyramid {
     pub data: Vec<u8>,
 }
 
-/// Heights of the tile's vertices, quanta (the mesh step for `grid`).
-fn mesh_tile(shape: &TileShape, t: TileId, zq: &[i32]) -> Vec<i32> {
-    let span = shape.span(t);
-    let w = shape.width();
-    (0..span.vertex_count() as u32)
-        .map(|v| {
-            let (c, r) = span.vertex_pos(v);
-            zq[(r * w + c) as usize]
-        })
-        .collect()
-}
-
-/// Builds the pyramid over `heights` (row-major metres, voids filled) quantised by `quantum`.
-/// `progress` receives the fraction done.
+/// Builds the pyramid over `heights` (row-major metres, voids filled) quantised by `quantum`,
+/// with meshes of `kind` ([`pyramid`]). `progress` receives the fraction done.
 pub fn build_pyramid(
     shape: &TileShape,
     heights: &[f32],
     quantum: f32,
+    kind: MeshKind,
     mut progress: impl FnMut(f64),
 ) -> TilePyramid {
-    let w = shape.width();
+    let (w, h) = (shape.width(), shape.height());
     let inv = 1.0 / quantum;
     let zq: Vec<i32> = heights
         .iter()
@@ -77,48 +69,95 @@ pub fn build_pyramid(
             (v + 0.5f32.copysign(v)) as i32
         })
         .collect();
+    let zf: Vec<f32> = zq.iter().map(|&v| v as f32 * quantum).collect();
+    let (Some(orig), Some(quantised)) = (
+        HeightGrid::new(w as usize, h as usize, heights),
+        HeightGrid::new(w as usize, h as usize, &zf),
+    ) else {
+        unreachable!("a tile shape has at least 2 x 2 samples, one height each");
+    };
     let n = shape.tile_count() as usize;
+    // Every tile's grid error and bounds first: the grid's own errors, and the adaptive kinds'
+    // tolerances.
+    let mut grid_err = vec![0f32; n];
+    let mut bounds = vec![(0i32, 0i32); n];
+    let steps = if kind == MeshKind::Grid { 1.0 } else { 2.0 };
+    for i in 0..n as u32 {
+        let t = shape.tile(i).unwrap_or(TileId::ROOT);
+        let span = shape.span(t);
+        let z: Vec<f32> = (0..span.vertex_count() as u32)
+            .map(|v| {
+                let (c, r) = span.vertex_pos(v);
+                quantised.at(c, r)
+            })
+            .collect();
+        let (mut err, mut lo, mut hi) = (0f32, f32::MAX, f32::MIN);
+        for r in span.rows.0..=span.rows.1 {
+            for c in span.cols.0..=span.cols.1 {
+                let h = orig.at(c, r);
+                lo = lo.min(h);
+                hi = hi.max(h);
+                err = err.max((grid_height(&span, &z, c as f32, r as f32) - h).abs());
+            }
+        }
+        grid_err[i as usize] = err;
+        bounds[i as usize] = ((lo * inv).floor() as i32, (hi * inv).ceil() as i32);
+        if i % 64 == 0 {
+            progress(f64::from(i) / n as f64 / steps);
+        }
+    }
+    let tol = Tolerances::from_grid_errors(shape, &grid_err);
     let mut records = vec![TileRecord::default(); n];
     let mut data = Vec::new();
+    let mut done = 0usize;
     // Finest level first, so that children's errors are known when parents saturate.
     for level in (0..=shape.depth()).rev() {
         let (nx, ny) = shape.level_dims(level);
         for y in 0..ny {
             for x in 0..nx {
                 let t = TileId { level, x, y };
-                let span = shape.span(t);
-                let z = mesh_tile(shape, t, &zq);
-                let zf: Vec<f32> = z.iter().map(|&v| v as f32 * quantum).collect();
-                let (mut err, mut lo, mut hi) = (0f32, f32::MAX, f32::MIN);
-                for r in span.rows.0..=span.rows.1 {
-                    for c in span.cols.0..=span.cols.1 {
-                        let h = heights[(r * w + c) as usize];
-                        lo = lo.min(h);
-                        hi = hi.max(h);
-                        err = err.max((grid_height(&span, &zf, c as f32, r as f32) - h).abs());
+                let i = shape.index(t) as usize;
+                let m = mesh_tile(kind, shape, t, &zq, &quantised, &tol);
+                let (mut err, patches, pblob) = match &m.irregular {
+                    None => {
+                        let patches = if kind == MeshKind::Grid {
+                            find_patches(shape, t, &m.z, |c, r| zq[(r * w + c) as usize])
+                        } else {
+                            // An `rqt` store's clipped grid tiles carry an empty patch set.
+                            Patches::default()
+                        };
+                        let pblob = encode_patches(shape, t, &m.z, &patches);
+                        (grid_err[i], patches, pblob)
                     }
-                }
+                    Some(irr) => (
+                        irregular_error(shape, t, irr, &m.z, quantum, &orig),
+                        Patches::default(),
+                        Vec::new(),
+                    ),
+                };
+                let mesh = m.blob;
                 for c in shape.children(t) {
                     err = err.max(records[shape.index(c) as usize].error);
                 }
-                let patches = find_patches(shape, t, &z, |c, r| zq[(r * w + c) as usize]);
-                let mesh = encode_mesh(&span, &z);
-                let pblob = encode_patches(shape, t, &z, &patches);
-                records[shape.index(t) as usize] = TileRecord {
+                records[i] = TileRecord {
                     offset: data.len() as u64,
                     mesh_len: mesh.len() as u32,
                     patch_len: pblob.len() as u32,
                     error: err,
-                    zmin: (lo * inv).floor() as i32,
-                    zmax: (hi * inv).ceil() as i32,
+                    zmin: bounds[i].0,
+                    zmax: bounds[i].1,
                     patch_tris: patches.triangle_count() as u32,
                 };
                 data.extend_from_slice(&mesh);
                 data.extend_from_slice(&pblob);
+                done += 1;
+                if done % 16 == 0 {
+                    progress((steps - 1.0 + done as f64 / n as f64) / steps);
+                }
             }
         }
-        progress(1.0 - f64::from(level) / f64::from(shape.depth() + 1));
     }
+    progress(1.0);
     TilePyramid { records, data }
 }
 
@@ -136,6 +175,52 @@ pub fn crack_triangles(shape: &TileShape, records: &[TileRecord], tiles: &[u32])
 #[cfg(test)]
 mod tests {
     use super::*;
+    use relief_proto::tile::body::decode_mesh;
+    use relief_proto::tile::mirror::TileData;
+
+    /// For every mesh kind: each tile's blob decodes, and its recorded error bounds the
+    /// distance from the decoded mesh (as a client draws it) to every sample it covers.
+    #[test]
+    fn decoded_meshes_stay_within_their_recorded_errors() {
+        let (w, h) = (257u32, 257u32);
+        let heights: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (c, r) = ((i % w) as f32, (i / w) as f32);
+                (c * 0.31).sin() * 35.0 + (r * 0.17).cos() * 22.0 + ((c * r) * 0.011).sin() * 7.0
+            })
+            .collect();
+        let shape = TileShape::new(w, h, 64).unwrap();
+        for kind in [MeshKind::Grid, MeshKind::Rqt, MeshKind::Tin] {
+            let q = 0.1;
+            let p = build_pyramid(&shape, &heights, q, kind, |_| {});
+            for i in 0..shape.tile_count() {
+                let t = shape.tile(i).unwrap();
+                let r = p.records[i as usize];
+                let blob = &p.data[r.offset as usize..][..r.mesh_len as usize];
+                let span = shape.span(t);
+                let m = decode_mesh(&span, blob).unwrap();
+                let data = TileData {
+                    tile: t,
+                    span,
+                    z: m.z,
+                    irregular: m.irregular,
+                    patches: Default::default(),
+                };
+                let mut worst = 0f32;
+                for rr in span.rows.0..=span.rows.1 {
+                    for c in span.cols.0..=span.cols.1 {
+                        let z = data.height_at(c as f32, rr as f32).expect("covered") * q;
+                        worst = worst.max((z - heights[(rr * w + c) as usize]).abs());
+                    }
+                }
+                assert!(
+                    worst <= r.error + 1e-3,
+                    "{kind:?} {t:?}: {worst} > {}",
+                    r.error
+                );
+            }
+        }
+    }
 
     #[test]
     fn errors_bound_every_sample_and_saturate() {
@@ -144,7 +229,7 @@ mod tests {
             .map(|i| ((i % w) as f32 * 0.7).sin() * 40.0 + ((i / w) as f32 * 0.3).cos() * 25.0)
             .collect();
         let shape = TileShape::new(w, h, 8).unwrap();
-        let p = build_pyramid(&shape, &heights, 0.1, |_| {});
+        let p = build_pyramid(&shape, &heights, 0.1, MeshKind::Grid, |_| {});
         for i in 0..shape.tile_count() {
             let t = shape.tile(i).unwrap();
             let r = p.records[i as usize];

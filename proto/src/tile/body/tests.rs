@@ -45,8 +45,89 @@ fn patch_tris(shape: &TileShape, t: TileId, d: &[i32]) -> Vec<Tri> {
     out
 }
 
+/// The `rqt` mesh of `d` over tile `t`'s lattice where vertex `p` is active when `active(p)`:
+/// its blob, and the mesh the recursion gives directly.
+fn rqt_case(
+    shape: &TileShape,
+    t: TileId,
+    d: &[i32],
+    active: impl Fn([u32; 2]) -> bool,
+) -> Option<(Vec<u8>, IrregularMesh, Vec<i32>)> {
+    let sp = shape.span(t);
+    let s = sp.stride;
+    let z_at =
+        |p: [u32; 2]| d[((sp.rows.0 + p[1] * s) * shape.width() + sp.cols.0 + p[0] * s) as usize];
+    let blob = rqt::encode_rqt(&sp, &active, z_at)?;
+    let side = rqt::rqt_side(&sp)?;
+    let (v, triangles) = rqt::rqt_triangles(side, |m, _, _| active(m));
+    let z = v.iter().map(|&p| z_at(p)).collect();
+    let at = v.iter().map(|p| p.map(|x| x * s)).collect();
+    Some((
+        blob,
+        IrregularMesh {
+            kind: MeshKind::Rqt,
+            at,
+            triangles,
+        },
+        z,
+    ))
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// `rqt` blobs decode to the recursion's own mesh and heights, whichever vertices are active
+    /// (restricted or not), and cover the tile: the triangles' areas add up to the tile's.
+    #[test]
+    fn rqt_meshes_round_trip(t in 2u32..6, seed in any::<u64>(), amp in 0i32..100_000, p_active in 0u64..100) {
+        let size = (1u32 << t) * 2 + 1;
+        let shape = TileShape::new(size, size, 1 << t).unwrap();
+        let d = dem(size, size, seed, amp);
+        for i in 0..shape.tile_count() {
+            let tile = shape.tile(i).unwrap();
+            let sp = shape.span(tile);
+            let hash = |p: [u32; 2]| (u64::from(p[0]) * 7919 + u64::from(p[1]) * 104_729 + seed) % 100;
+            let case = rqt_case(&shape, tile, &d, |p| hash(p) < p_active);
+            prop_assert!(case.is_some(), "square tiles take rqt");
+            let (blob, mesh, z) = case.unwrap();
+            let got = decode_mesh(&sp, &blob).unwrap();
+            prop_assert_eq!(&got.z, &z);
+            let irr = got.irregular.unwrap();
+            let area: i64 = irr.triangles.iter().map(|t| {
+                let [a, b, c] = t.map(|v| irr.at[v as usize]);
+                rqt::area2(a, b, c)
+            }).sum();
+            let ccw = irr.triangles.iter().all(|t| {
+                let [a, b, c] = t.map(|v| irr.at[v as usize]);
+                rqt::area2(a, b, c) > 0
+            });
+            prop_assert!(ccw);
+            prop_assert_eq!(area, 2 * i64::from(sp.cols.1 - sp.cols.0) * i64::from(sp.rows.1 - sp.rows.0));
+            prop_assert_eq!(irr, mesh);
+        }
+    }
+
+    /// `tin`'s blobs decode to the same mesh, renumbered in [`irregular::canonical`] order.
+    #[test]
+    fn irregular_meshes_round_trip(n in 3usize..200, seed in any::<u64>(), amp in 0i32..100_000) {
+        let sp = TileSpan { cols: (64, 128), rows: (0, 40), stride: 1 };
+        let d = dem(65, 41, seed, amp);
+        // A fan from the tile's centre over points on its border: any triangles will do here.
+        let mut at: Vec<[u32; 2]> = vec![[32, 20]];
+        let mut k = seed;
+        for _ in 0..n {
+            k = k.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            at.push([((k >> 33) % 65) as u32, ((k >> 17) % 41) as u32]);
+        }
+        let triangles: Vec<[u32; 3]> = (1..at.len() as u32 - 1).map(|v| [0, v, v + 1]).collect();
+        let z: Vec<i32> = at.iter().map(|p| d[(p[1] * 65 + p[0]) as usize]).collect();
+        let mesh = IrregularMesh { kind: MeshKind::Tin, at, triangles };
+        let blob = encode_irregular(&mesh, &z);
+        let (want, want_z) = irregular::canonical(&mesh, &z);
+        let got = decode_mesh(&sp, &blob).unwrap();
+        prop_assert_eq!(got.z, want_z);
+        prop_assert_eq!(got.irregular.unwrap(), want);
+    }
 
     #[test]
     fn meshes_and_patches_round_trip(w in 3u32..80, h in 3u32..80, t in 1u32..4, seed in any::<u64>(), amp in 0i32..100_000) {
@@ -57,7 +138,7 @@ proptest! {
             let sp = shape.span(tile);
             let z = tile_z(&shape, tile, &d);
             let mesh = encode_mesh(&sp, &z);
-            prop_assert_eq!(decode_mesh(&sp, &mesh).unwrap(), z.clone());
+            prop_assert_eq!(decode_mesh(&sp, &mesh).unwrap(), DecodedMesh { z: z.clone(), irregular: None });
             let p = find_patches(&shape, tile, &z, |c, r| d[(r * w + c) as usize]);
             let blob = encode_patches(&shape, tile, &z, &p);
             prop_assert_eq!(decode_patches(&shape, tile, &z, &blob).unwrap(), p);
@@ -70,9 +151,17 @@ proptest! {
         for i in 0..shape.tile_count() {
             let t = shape.tile(i).unwrap();
             let sp = shape.span(t);
-            if let Ok(z) = decode_mesh(&sp, &bytes) {
-                prop_assert_eq!(z.len(), sp.vertex_count());
-                let _ = decode_patches(&shape, t, &z, &bytes);
+            if let Ok(m) = decode_mesh(&sp, &bytes) {
+                match &m.irregular {
+                    None => prop_assert_eq!(m.z.len(), sp.vertex_count()),
+                    Some(irr) => {
+                        prop_assert_eq!(m.z.len(), irr.at.len());
+                        let (w, h) = (sp.cols.1 - sp.cols.0, sp.rows.1 - sp.rows.0);
+                        prop_assert!(irr.at.iter().all(|p| p[0] <= w && p[1] <= h));
+                        prop_assert!(irr.triangles.iter().flatten().all(|&v| (v as usize) < m.z.len()));
+                    }
+                }
+                let _ = decode_patches(&shape, t, &m.z, &bytes);
             }
             let _ = decode_patches(&shape, t, &vec![0; sp.vertex_count()], &bytes);
         }

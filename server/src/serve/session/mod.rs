@@ -33,7 +33,10 @@ use futures_util::{Sink, SinkExt, Stream};
 use io::{Ended, fail, receive, send};
 use relief_proto::close::CloseReason;
 use relief_proto::cut::Cut;
-use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, ServerMsg, StreamKind, Welcome};
+use relief_proto::msg::{
+    ClientMsg, CrackMode, Hello, PROTOCOL_VERSION, ServerMsg, StreamKind, Welcome,
+};
+use relief_proto::tile::body::MeshKind;
 use std::error::Error as StdError;
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -176,6 +179,9 @@ async fn open<'a>(
     let budget = hello.budget;
     let built = tokio::task::spawn_blocking(move || {
         if let StreamKind::Tiles(tp) = hello.kind {
+            if tp.crack == CrackMode::Patches && t.store.tile_mesh() == MeshKind::Rqt {
+                return Err("this store's rqt tiles carry no crack patches: ask for skirts".into());
+            }
             let engine = TileEngine::new(&t.store);
             let session = match &hello.resume {
                 Some(r) => {

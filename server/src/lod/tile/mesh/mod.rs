@@ -15,11 +15,13 @@
 //! - [`tin`]: paper 003's greedy-insertion Delaunay TIN to a tolerance, over `delaunay`
 //!   and `queue`;
 //! - [`borders`]: paper 003's shared border points, so that `tin` tiles of the same and
-//!   adjacent levels meet vertex for vertex.
+//!   adjacent levels meet vertex for vertex;
+//! - [`pyramid`]: one tile of the store's pyramid meshed by kind, at its level's tolerance.
 
 pub mod borders;
 mod delaunay;
 pub mod fractal;
+pub mod pyramid;
 mod queue;
 pub mod rqt;
 pub mod tin;
@@ -61,15 +63,7 @@ pub struct TriMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-/// Twice the signed area of triangle `a b c` in world axes (x = col, y = -row): positive when
-/// counter-clockwise seen from above.
-#[inline]
-pub fn area2(a: [u32; 2], b: [u32; 2], c: [u32; 2]) -> i64 {
-    let (ax, ay) = (i64::from(a[0]), -i64::from(a[1]));
-    let (bx, by) = (i64::from(b[0]), -i64::from(b[1]));
-    let (cx, cy) = (i64::from(c[0]), -i64::from(c[1]));
-    (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
-}
+pub use relief_proto::tile::body::rqt::area2;
 
 impl TriMesh {
     /// Whether every triangle is counter-clockwise and non-degenerate, and the triangles'
@@ -94,10 +88,22 @@ impl TriMesh {
     /// to the sample, so that a sample on the plane has no rounding error). Samples on
     /// shared edges are tested by every triangle that holds them.
     pub fn max_error(&self, grid: &HeightGrid<'_>) -> f32 {
+        let z: Vec<f32> = self.vertices.iter().map(|p| grid.at(p[0], p[1])).collect();
+        self.error_against(&z, grid, [0, 0])
+    }
+
+    /// The largest vertical distance, metres, between the mesh with vertex heights `vertex_z`
+    /// and the samples of `grid` it covers, its vertex `[c, r]` standing on the grid's sample
+    /// `origin + [c, r]` (as [`TriMesh::max_error`], whose vertices take the grid's heights).
+    /// This measures a mesh of quantised heights against the original samples.
+    pub fn error_against(&self, vertex_z: &[f32], grid: &HeightGrid<'_>, origin: [u32; 2]) -> f32 {
         let mut worst = 0.0f64;
         for t in &self.triangles {
-            let v = t.map(|i| self.vertices[i as usize]);
-            let z = v.map(|p| f64::from(grid.at(p[0], p[1])));
+            let v = t.map(|i| {
+                let p = self.vertices[i as usize];
+                [p[0] + origin[0], p[1] + origin[1]]
+            });
+            let z = t.map(|i| f64::from(vertex_z[i as usize]));
             let d = area2(v[0], v[1], v[2]) as f64;
             if d == 0.0 {
                 continue;

@@ -46,6 +46,7 @@
 //! do; patches or skirts close those cracks, as for `grid`.
 
 use super::{HeightGrid, TriMesh, area2};
+use relief_proto::tile::body::rqt::rqt_triangles;
 use std::collections::BinaryHeap;
 
 mod stitch;
@@ -302,32 +303,16 @@ impl RqtErrors {
     /// The mesh at `tolerance` metres (figure 6's recursion): [`TriMesh::max_error`] is at
     /// most `tolerance`. A negative tolerance gives the full grid, an infinite one 2 triangles.
     pub fn mesh(&self, tolerance: f32) -> TriMesh {
-        let s = self.side;
-        let mut slot = vec![u32::MAX; self.thr.len()];
-        let mut mesh = TriMesh::default();
-        // (apex, hypotenuse end, hypotenuse end)
-        let mut stack = vec![([0, s], [0, 0], [s, s]), ([s, 0], [s, s], [0, 0])];
-        while let Some((c, a, b)) = stack.pop() {
-            let sum = [a[0] + b[0], a[1] + b[1]];
-            if sum[0] % 2 == 0 && sum[1] % 2 == 0 {
-                let m = sum.map(|v| v / 2);
-                if self.thr[self.index(m)] > tolerance {
-                    stack.push((m, c, b));
-                    stack.push((m, a, c));
-                    continue;
-                }
-            }
-            let t = ccw(c, a, b).map(|p| {
-                let i = self.index(p);
-                if slot[i] == u32::MAX {
-                    slot[i] = mesh.vertices.len() as u32;
-                    mesh.vertices.push(p);
-                }
-                slot[i]
-            });
-            mesh.triangles.push(t);
+        let (vertices, triangles) = rqt_triangles(self.side, |m, _, _| self.active(m, tolerance));
+        TriMesh {
+            vertices,
+            triangles,
         }
-        mesh
+    }
+
+    /// Whether vertex `p` is active at `tolerance`.
+    pub fn active(&self, p: Pos, tolerance: f32) -> bool {
+        self.thr[self.index(p)] > tolerance
     }
 
     /// Triangles of [`RqtErrors::mesh`] at `tolerance`, counted without building it: each
