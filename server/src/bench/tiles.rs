@@ -333,27 +333,6 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
                 &mut r.morphed_pops,
             );
         }
-        if f == 0 && std::env::var("TILEDEBUG").is_ok() {
-            for &i in &active {
-                let t = mirror.tile(i).unwrap();
-                let sf = Surface::new(t);
-                let mut worst = 0f32;
-                for rr in t.span.rows.0..=t.span.rows.1 {
-                    for c in t.span.cols.0..=t.span.cols.1 {
-                        let z = sf.height_at(c as f32, rr as f32).unwrap() * geom.z_quantum;
-                        worst = worst.max((z - dem.heights[(rr * w + c) as usize]).abs());
-                    }
-                }
-                let se = engine.screen_error(&view, i);
-                eprintln!(
-                    "tile {:?} err {} rec {} se {}",
-                    t.tile,
-                    worst,
-                    store.tile_records()[i as usize].error,
-                    se
-                );
-            }
-        }
         if f % flight.px_every == 0 {
             let tris = world_triangles(&mirror, &active, geom);
             r.px.measure(&flight, dem, &tris, f, &lens);
