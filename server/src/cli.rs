@@ -87,6 +87,36 @@ enum BenchCommand {
         #[arg(long, value_enum, default_value = "grid")]
         tile_mesh: TileMeshArg,
     },
+    /// Fly the path once per stream (vertex; tiles grid+skirts, grid+patches, rqt+skirts,
+    /// tin+shared-borders), each tuned until its measured p99 pixel error is within 5 % of the
+    /// target, and compare bytes (raw and gzipped), triangles and costs. Prints Markdown, or
+    /// JSON with --json; --plot writes bytes against measured error as SVG.
+    Compare {
+        #[command(flatten)]
+        run: BenchArgs,
+        /// Measured p99 pixel error every stream is tuned to (--tau is the first guess only
+        /// for none: each stream starts at tau = this target).
+        #[arg(long, default_value_t = 1.0)]
+        target_px: f64,
+        /// How close the measured p99 must come, as a fraction of the target.
+        #[arg(long, default_value_t = 0.05)]
+        within: f64,
+        /// The curve's other error levels, as multiples of the target.
+        #[arg(long, value_delimiter = ',', default_value = "0.5,2")]
+        levels: Vec<f64>,
+        /// Flights per stream and level at most.
+        #[arg(long, default_value_t = 10)]
+        tries: usize,
+        /// Cells per tile side (a power of two from 2 to 256).
+        #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
+        tile_size: u32,
+        /// Compare only these streams (comma-separated names, e.g. vertex,tiles/grid+skirts).
+        #[arg(long, value_delimiter = ',')]
+        only: Option<Vec<String>>,
+        /// Write the bytes-against-error plot here (SVG).
+        #[arg(long)]
+        plot: Option<PathBuf>,
+    },
 }
 
 /// A tile mesh kind on the command line.
@@ -317,6 +347,53 @@ fn run() -> anyhow::Result<()> {
                 ..Default::default()
             };
             print_report(&crate::bench::tiles::run(&d, &opts)?, run.json)?;
+        }
+        Command::Bench {
+            which:
+                BenchCommand::Compare {
+                    run,
+                    target_px,
+                    within,
+                    levels,
+                    tries,
+                    tile_size,
+                    only,
+                    plot,
+                },
+        } => {
+            relief_proto::tile::TileShape::new(2, 2, tile_size)?;
+            if !(target_px.is_finite() && target_px > 0.0) {
+                anyhow::bail!("--target-px must be a positive number of pixels, not {target_px}");
+            }
+            if !(within.is_finite() && within > 0.0 && within < 1.0) {
+                anyhow::bail!("--within must lie between 0 and 1, not {within}");
+            }
+            if let Some(l) = levels.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
+                anyhow::bail!("--levels must be positive multiples of the target, not {l}");
+            }
+            let d = run.load()?;
+            let opts = crate::bench::compare::CompareOptions {
+                path: run.path,
+                target_px,
+                within,
+                levels,
+                tries,
+                tile_size,
+                px_every: run.px_every,
+                poses: run.poses.map(|n| n as usize),
+                only,
+                progress: !run.dem_args.quiet,
+            };
+            let r = crate::bench::compare::run(&d, &opts)?;
+            if let Some(p) = plot {
+                std::fs::write(&p, crate::bench::compare::svg(&r))
+                    .with_context(|| format!("cannot write {}", p.display()))?;
+            }
+            if run.json {
+                println!("{}", serde_json::to_string(&r)?);
+            } else {
+                print!("{}", crate::bench::compare::markdown(&r));
+            }
         }
     }
     Ok(())

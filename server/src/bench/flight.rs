@@ -211,3 +211,66 @@ impl CostSummary {
         }
     }
 }
+
+/// The bytes a stream sent over a flight, frame by frame: raw and as gzip would send each
+/// message (deflate per message, as HTTP or WebSocket compression does).
+#[derive(Clone, Debug, Default)]
+pub struct WireBytes {
+    /// Per frame: (raw bytes, gzipped bytes).
+    frames: Vec<(u64, u64)>,
+}
+
+/// What [`WireBytes`] reports.
+#[derive(Clone, Copy, Debug, Default, Serialize)]
+pub struct WireSummary {
+    /// All bytes over the path, the first frame's (the session start) included.
+    pub bytes_total: u64,
+    /// Same, each message gzipped.
+    pub gzip_bytes_total: u64,
+    /// Bytes per second over the path after the first frame: mean.
+    pub bytes_per_s_mean: f64,
+    /// Same, the 99th percentile of one-second bins.
+    pub bytes_per_s_p99: f64,
+    /// Gzipped bytes per second after the first frame: mean.
+    pub gzip_bytes_per_s_mean: f64,
+    /// Same, the 99th percentile of one-second bins.
+    pub gzip_bytes_per_s_p99: f64,
+}
+
+impl WireBytes {
+    /// Adds the next frame's message.
+    pub fn push(&mut self, msg: &[u8]) {
+        self.frames.push((msg.len() as u64, gzip_len(msg) as u64));
+    }
+
+    /// The totals, and the rates in bins of `hz` frames (one second of the path).
+    pub fn summary(&self, hz: usize) -> WireSummary {
+        let total = |k: fn(&(u64, u64)) -> u64| self.frames.iter().map(k).sum::<u64>();
+        let rest = self.frames.get(1..).unwrap_or(&[]);
+        let seconds = (rest.len() as f64 / hz as f64).max(1.0 / hz as f64);
+        let bins = |k: fn(&(u64, u64)) -> u64| -> Vec<f64> {
+            rest.chunks(hz.max(1))
+                .filter(|c| c.len() == hz.max(1))
+                .map(|c| c.iter().map(k).sum::<u64>() as f64)
+                .collect()
+        };
+        let raw = |f: &(u64, u64)| f.0;
+        let gz = |f: &(u64, u64)| f.1;
+        WireSummary {
+            bytes_total: total(raw),
+            gzip_bytes_total: total(gz),
+            bytes_per_s_mean: rest.iter().map(raw).sum::<u64>() as f64 / seconds,
+            bytes_per_s_p99: quantile(&bins(raw), 0.99),
+            gzip_bytes_per_s_mean: rest.iter().map(gz).sum::<u64>() as f64 / seconds,
+            gzip_bytes_per_s_p99: quantile(&bins(gz), 0.99),
+        }
+    }
+}
+
+/// The length of `b` gzipped at the default level.
+pub fn gzip_len(b: &[u8]) -> usize {
+    use std::io::Write;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    let _ = e.write_all(b);
+    e.finish().map_or(0, |v| v.len())
+}

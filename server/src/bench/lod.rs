@@ -7,7 +7,7 @@
 //! geomorphs applied, as a client draws it) is checked against the brute-force oracle and for
 //! cracks, and its pixel error is measured against the DEM (DESIGN.md section 7).
 
-use super::flight::{CostSummary, Flight, PxAccum, PxSummary};
+use super::flight::{CostSummary, Flight, PxAccum, PxSummary, WireBytes, WireSummary};
 use super::stats::{median, quantile};
 use crate::dem::Dem;
 use crate::lod::vertex::session::VertexSession;
@@ -133,6 +133,9 @@ pub struct LodBenchReport {
     pub initial_delta_bytes: u64,
     /// Wire bytes per second of flight after the first delta.
     pub delta_bytes_per_s_mean: f64,
+    /// Bytes over the whole path, raw and gzipped, with their rates.
+    #[serde(flatten)]
+    pub wire: WireSummary,
     /// Server memory of the session's state, bytes, median over poses.
     pub session_bytes: f64,
     /// The same per active node, median over poses.
@@ -155,7 +158,13 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         opts.px_min_samples,
         opts.progress,
     )?;
-    let flight = flight.first_poses(opts.poses);
+    fly(dem, &flight.first_poses(opts.poses), opts)
+}
+
+/// Flies `flight`'s path over its store with `opts`' stream settings (its path, tile size and
+/// mesh are the flight's; the store is not rebuilt, so `bench compare` flies one store at many
+/// thresholds).
+pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> {
     let store = &flight.store;
     let engine = VertexEngine::new(store);
     let geom = store.geometry();
@@ -185,6 +194,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
 
     let mut r = Accum::default();
     r.bytes += first_bytes.len() as u64;
+    r.wire.push(&first_bytes);
     r.splits += first.splits.len() as u64;
     let bar = super::progress_bar(opts.progress, frames as u64, "flying");
     for (f, cam) in cams.iter().enumerate().skip(1) {
@@ -225,6 +235,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         r.client_us.push(t0.elapsed().as_secs_f64() * 1e6);
         r.path_bytes += bytes.len() as u64;
         r.bytes += bytes.len() as u64;
+        r.wire.push(&bytes);
         r.splits += delta.splits.len() as u64;
         r.merges += delta.merges.len() as u64;
         let changes = (delta.splits.len() + delta.merges.len()) as f64;
@@ -290,6 +301,7 @@ pub fn run(dem: &Dem, opts: &LodBenchOptions) -> anyhow::Result<LodBenchReport> 
         split_entropy_bytes: entropy.bytes_per_split(),
         initial_delta_bytes: first_bytes.len() as u64,
         delta_bytes_per_s_mean: r.path_bytes as f64 / seconds,
+        wire: r.wire.summary(PATH_HZ as usize),
         session_bytes: median(&r.session_bytes),
         session_bytes_per_active_node: median(
             &r.session_bytes
@@ -322,6 +334,7 @@ struct Accum {
     px: PxAccum,
     bytes: u64,
     path_bytes: u64,
+    wire: WireBytes,
     splits: u64,
     merges: u64,
     desyncs: u64,

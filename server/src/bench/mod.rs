@@ -3,7 +3,9 @@
 //! - [`flight`]: what they share: the store, the path, the measured pixel error.
 //! - [`lod`]: the vertex stream over the standard or stress path.
 //! - [`tiles`]: the tile stream over the same paths, with patches, skirts or nothing.
+//! - [`compare`]: every stream at the same measured error.
 //! - [`stats`]: medians and quantiles.
+pub mod compare;
 pub mod flight;
 pub mod lod;
 pub mod stats;

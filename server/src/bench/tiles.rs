@@ -13,7 +13,7 @@
 //! the new tile was drawn before (on the surface of the tiles it replaces) and where it is drawn
 //! now, for the pose's camera.
 
-use super::flight::{CostSummary, Flight, PxAccum, PxSummary};
+use super::flight::{CostSummary, Flight, PxAccum, PxSummary, WireBytes, WireSummary, gzip_len};
 use super::stats::{mean, median, quantile};
 use crate::dem::Dem;
 use crate::lod::measure::Projector;
@@ -32,7 +32,6 @@ use relief_proto::tile::mirror::TileMirror;
 use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::view::{Lens, ViewState};
 use serde::Serialize;
-use std::io::Write;
 use std::time::Instant;
 
 /// What to run.
@@ -147,6 +146,9 @@ pub struct TileBenchReport {
     pub initial_delta_bytes: u64,
     /// Wire bytes per second of flight after the first delta.
     pub delta_bytes_per_s_mean: f64,
+    /// Bytes over the whole path, raw and gzipped (each message), with their rates.
+    #[serde(flatten)]
+    pub wire: WireSummary,
     /// Largest vertex jump at a tile switch, pixels.
     pub pop_px_max: f64,
     /// 99th percentile over switches of each switch's largest jump, pixels.
@@ -166,12 +168,6 @@ pub struct TileBenchReport {
     pub build_tiles_s: f64,
     /// Size of the store file (tree and tiles).
     pub store_bytes: u64,
-}
-
-fn gzip_len(b: &[u8]) -> usize {
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-    let _ = e.write_all(b);
-    e.finish().map_or(0, |v| v.len())
 }
 
 /// Per-frame series.
@@ -195,6 +191,7 @@ struct Accum {
     tile_bytes: Vec<f64>,
     gzip_bytes: Vec<f64>,
     path_bytes: u64,
+    wire: WireBytes,
     pops: Vec<f64>,
     morphed_pops: Vec<f64>,
     session_bytes: Vec<f64>,
@@ -215,7 +212,13 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         opts.px_min_samples,
         opts.progress,
     )?;
-    let flight = flight.first_poses(opts.poses);
+    fly(dem, &flight.first_poses(opts.poses), opts)
+}
+
+/// Flies `flight`'s path over its store with `opts`' stream settings (its path, tile size and
+/// mesh are the flight's; the store is not rebuilt, so `bench compare` flies one store at many
+/// thresholds).
+pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport> {
     let store = &flight.store;
     let engine = TileEngine::new(store);
     let shape = engine.shape();
@@ -275,6 +278,7 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
             }
         }
         let client_us = t0.elapsed().as_secs_f64() * 1e6;
+        r.wire.push(&msg);
         if f == 0 {
             first_bytes = msg.len() as u64;
         } else {
@@ -381,6 +385,7 @@ pub fn run(dem: &Dem, opts: &TileBenchOptions) -> anyhow::Result<TileBenchReport
         gzip_tile_bytes_mean: mean(&r.gzip_bytes),
         initial_delta_bytes: first_bytes,
         delta_bytes_per_s_mean: r.path_bytes as f64 / seconds,
+        wire: r.wire.summary(PATH_HZ as usize),
         pop_px_max: quantile(&r.pops, 1.0),
         pop_px_p99: quantile(&r.pops, 0.99),
         pop_px_median: median(&r.pops),
