@@ -133,6 +133,15 @@ async fn open<'a>(
     }
     validate::params(&hello.lens, hello.tau, hello.budget)
         .map_err(|e| (CloseReason::BadParams, e))?;
+    if let StreamKind::Tiles(tp) = hello.kind
+        && tp.crack == CrackMode::Patches
+        && terrain.store.tile_mesh() == MeshKind::Rqt
+    {
+        return fail(
+            CloseReason::BadParams,
+            "this terrain's rqt tiles carry no crack patches: ask for skirts".to_string(),
+        );
+    }
     if let Some(r) = &hello.resume
         && r.terrain_id != terrain.info.id
     {
@@ -179,9 +188,6 @@ async fn open<'a>(
     let budget = hello.budget;
     let built = tokio::task::spawn_blocking(move || {
         if let StreamKind::Tiles(tp) = hello.kind {
-            if tp.crack == CrackMode::Patches && t.store.tile_mesh() == MeshKind::Rqt {
-                return Err("this store's rqt tiles carry no crack patches: ask for skirts".into());
-            }
             let engine = TileEngine::new(&t.store);
             let session = match &hello.resume {
                 Some(r) => {
