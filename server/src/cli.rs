@@ -4,6 +4,7 @@
 
 use crate::bench::lod::{self, LodBenchOptions};
 use crate::dem::DemArgs;
+use crate::lod::tile::mesh::fractal::FractalParams;
 
 use crate::lod::vertex::LodParams;
 use crate::preprocess;
@@ -11,6 +12,8 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use relief_proto::path::PathKind;
 use std::path::PathBuf;
+
+mod info;
 
 #[derive(Parser)]
 #[command(
@@ -53,9 +56,31 @@ enum Command {
         dem: DemArgs,
     },
     /// Check a store completely (header, sizes, checksums) and print what it holds, as JSON.
+    /// With --fractal, also paper 002's fractal region tree over the store's heights.
+    #[command(after_help = INFO_HELP)]
     Info {
         /// The store file.
         store: PathBuf,
+        /// Also build paper 002's region tree (section 2.1) over the store's heights and tile
+        /// pyramid, and print it under the key "fractal": every leaf (tile level, x, y, sample
+        /// columns and rows, box-counting dimension, why it stopped) and a summary (leaves per
+        /// level, by stop, a histogram of dimensions in bins 0.01 wide).
+        #[arg(long)]
+        fractal: bool,
+        /// With --fractal: the dimension at or below which a region stops subdividing, whatever
+        /// its size (from 2 to 3; at most --rough).
+        #[arg(long, requires = "fractal", value_name = "D",
+              default_value_t = FractalParams::default().flat,
+              value_parser = info::dimension_arg, allow_negative_numbers = true)]
+        flat: f32,
+        /// With --fractal: the dimension at or above which a region subdivides down to the
+        /// finest tiles (from 2 to 3). In between, the largest leaf shrinks log-linearly by
+        /// pyramid level. Paper 002 calls about 2.0 flat and about 2.3 rough; real DEMs
+        /// measure 2.00 to 2.09 here (docs/fractal.md).
+        #[arg(long, requires = "fractal", value_name = "D",
+              default_value_t = FractalParams::default().rough,
+              value_parser = info::dimension_arg, allow_negative_numbers = true)]
+        rough: f32,
     },
     /// Benchmarks.
     Bench {
@@ -63,6 +88,15 @@ enum Command {
         which: BenchCommand,
     },
 }
+
+/// The end of `info --help`.
+const INFO_HELP: &str = "\
+With --fractal, each leaf's \"stop\" says why it is a leaf: \"flat\" (dimension at or below --flat), \
+\"sized\" (between the thresholds, and no larger than its dimension allows), \"finest\" (rough \
+enough to split further, but a finest-level tile) or \"no_dimension\" (under 16 cells across). \
+The heights are the store's, rounded to its z quantum. Thresholds, the box counting and what the \
+tree is good for: docs/fractal.md. Example:
+  relief-server info terrain.relief --fractal --rough 2.3 | jq '.fractal.per_level'";
 
 #[derive(Subcommand)]
 enum BenchCommand {
@@ -284,28 +318,24 @@ fn run() -> anyhow::Result<()> {
                 rep.tiles_s
             );
         }
-        Command::Info { store } => {
+        Command::Info {
+            store,
+            fractal,
+            flat,
+            rough,
+        } => {
+            // Thresholds first: a bad pair is refused before a large store is read.
+            let params = fractal
+                .then(|| info::fractal_params(flat, rough))
+                .transpose()?;
             let s = crate::store::Store::open(&store).context("cannot open the store")?;
-            let g = s.geometry();
-            let info = serde_json::json!({
-                "file": store.display().to_string(),
-                "bytes": s.file_len(),
-                "width": g.shape.width(),
-                "height": g.shape.height(),
-                "depth": g.shape.depth(),
-                "nodes": g.shape.node_count(),
-                "spacing_m": [g.frame.dx, g.frame.dy],
-                "z_quantum_m": g.z_quantum,
-                "tiles": {
-                    "tile_size": s.tile_info().tile_size,
-                    "depth": s.tile_info().depth,
-                    "mesh": s.tile_info().mesh,
-                    "level_errors_m": s.tile_info().level_errors,
-                },
-                "tile_count": s.tile_shape().tile_count(),
-                "meta": s.meta(),
-            });
-            println!("{}", serde_json::to_string_pretty(&info)?);
+            let mut out = info::store_info(&store, &s);
+            if let Some(p) = params {
+                let report = info::fractal_report(&s, &p, true)
+                    .context("cannot build the fractal region tree")?;
+                out["fractal"] = serde_json::to_value(report)?;
+            }
+            println!("{}", serde_json::to_string_pretty(&out)?);
         }
         Command::Bench {
             which: BenchCommand::Lod { run },
@@ -434,5 +464,41 @@ mod tests {
             panic!("not build")
         };
         assert_eq!(a.options(), opts);
+    }
+
+    /// `(fractal, flat, rough)` of an `info` command line.
+    fn info(args: &[&str]) -> Result<(bool, f32, f32), clap::Error> {
+        let cli = Cli::try_parse_from(["relief-server", "info", "t.relief"].iter().chain(args))?;
+        let Command::Info {
+            fractal,
+            flat,
+            rough,
+            ..
+        } = cli.command
+        else {
+            panic!("not info")
+        };
+        Ok((fractal, flat, rough))
+    }
+
+    #[test]
+    fn info_fractal_takes_checked_thresholds() {
+        let d = FractalParams::default();
+        assert_eq!(info(&[]).unwrap(), (false, d.flat, d.rough));
+        assert_eq!(info(&["--fractal"]).unwrap(), (true, d.flat, d.rough));
+        assert_eq!(
+            info(&["--fractal", "--flat", "2.0", "--rough", "2.3"]).unwrap(),
+            (true, 2.0, 2.3)
+        );
+        // Thresholds without --fractal would do nothing: refused.
+        assert!(info(&["--flat", "2.02"]).is_err());
+        for bad in ["NaN", "inf", "-1", "1.5", "3.01", "x"] {
+            let e = info(&["--fractal", "--rough", bad]).unwrap_err();
+            assert_eq!(e.kind(), clap::error::ErrorKind::ValueValidation, "{bad}");
+        }
+        // Each one valid, the pair not: refused when the command runs, before the store opens.
+        let (_, flat, rough) = info(&["--fractal", "--flat", "2.05", "--rough", "2.04"]).unwrap();
+        let e = info::fractal_params(flat, rough).unwrap_err().to_string();
+        assert!(e.contains("must not exceed"), "{e}");
     }
 }

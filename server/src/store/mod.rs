@@ -452,6 +452,20 @@ impl Store {
         self.node_z(self.geom.shape.leaf(col, row))
     }
 
+    /// Every sample's height in metres, row by row from the north: the full-resolution grid
+    /// the store was built from, as stored (each height rounded to the z quantum, so within
+    /// half a quantum of the source; voids hold their filled heights). It allocates
+    /// `4 * width * height` bytes.
+    pub fn heights(&self) -> Vec<f32> {
+        let (w, h) = (self.header.width, self.header.height);
+        let q = self.geom.z_quantum;
+        let mut out = Vec::with_capacity(w as usize * h as usize);
+        for row in 0..h {
+            out.extend((0..w).map(|col| self.sample_z(col, row) as f32 * q));
+        }
+        out
+    }
+
     /// Whether sample `(col, row)` was a void in the source.
     pub fn is_void(&self, col: u32, row: u32) -> bool {
         let i = row as usize * self.header.width as usize + col as usize;

@@ -109,3 +109,27 @@ fn corrupt_stores_are_refused() {
         .unwrap();
     assert!(matches!(e, StoreError::Io { .. }), "{e}");
 }
+
+#[test]
+fn heights_give_back_the_grid_to_within_half_a_quantum() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (37u32, 21u32);
+    // Heights off the 0.25 m quantum, negative ones included, and a ramp across rows.
+    let heights: Vec<f32> = (0..w * h)
+        .map(|i| (i % 13) as f32 * 2.37 - 9.1 + 0.61 * (i / w) as f32)
+        .collect();
+    let voids = vec![false; (w * h) as usize];
+    let path = dir.path().join("h.relief");
+    write_store(&path, &input(&heights, &voids, w, h), |_| {}).unwrap();
+    let s = Store::open(&path).unwrap();
+    let back = s.heights();
+    assert_eq!(back.len(), heights.len());
+    for (i, (&a, &b)) in heights.iter().zip(&back).enumerate() {
+        assert!(
+            (a - b).abs() <= 0.125 + 1e-4,
+            "sample {i}: {a} stored as {b}"
+        );
+    }
+    // Row-major from the north: sample (3, 2) is index 2 * w + 3.
+    assert_eq!(back[(2 * w + 3) as usize], s.sample_z(3, 2) as f32 * 0.25);
+}

@@ -151,7 +151,7 @@ pub fn build_pyramid(
                 data.extend_from_slice(&mesh);
                 data.extend_from_slice(&pblob);
                 done += 1;
-                if done % 16 == 0 {
+                if done.is_multiple_of(16) {
                     progress((steps - 1.0 + done as f64 / n as f64) / steps);
                 }
             }

@@ -34,7 +34,7 @@
 //! thresholds are [`FractalParams`]; `docs/fractal.md` justifies their defaults.
 
 use super::HeightGrid;
-use relief_proto::tile::{TileId, TileShape};
+use relief_proto::tile::{TileId, TileShape, TileSpan};
 
 /// Thresholds of the region tree.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -154,6 +154,60 @@ pub fn box_dimension(
     dimension_of(&box_counts(grid, spacing, cols, rows, scales))
 }
 
+/// The coarsest pyramid level whose tiles may be leaves for a region of dimension `d`, in a
+/// pyramid whose finest level is `depth`: 0 at or below `flat`, `depth` at or above `rough`,
+/// log-linearly in between. A region at `level` subdivides exactly when `level` is coarser
+/// than this ([`subdivides`]).
+pub fn leaf_level(p: &FractalParams, d: f32, depth: u8) -> u8 {
+    if d.is_nan() || d <= p.flat {
+        return 0;
+    }
+    let f = ((d - p.flat) / (p.rough - p.flat)).clamp(0.0, 1.0);
+    // `subdivides` splits while `level < f * depth - 1e-4`: the first level that does not.
+    (f * f32::from(depth) - 1e-4)
+        .ceil()
+        .clamp(0.0, f32::from(depth)) as u8
+}
+
+/// Why a leaf of the region tree stopped subdividing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeafStop {
+    /// Under 16 cells across: too few box sizes for a dimension, so it cannot be judged.
+    NoDimension,
+    /// Its dimension is at or below `flat`: a leaf whatever its size.
+    Flat,
+    /// Its dimension asks for the finest tiles (at or above `rough`, or close enough below
+    /// it), and it is one: the pyramid has no finer tiles to split it into.
+    Finest,
+    /// Its dimension lies between the thresholds and the region is no larger than that
+    /// dimension allows ([`leaf_level`]), above the finest level or not.
+    Sized,
+}
+
+impl LeafStop {
+    /// The stop of `leaf`, a leaf of the tree built with `p` over a pyramid of `depth` levels.
+    pub fn of(p: &FractalParams, leaf: &FractalLeaf, depth: u8) -> LeafStop {
+        match leaf.dimension {
+            None => LeafStop::NoDimension,
+            Some(d) if d.is_nan() || d <= p.flat => LeafStop::Flat,
+            Some(d) if leaf.tile.level >= depth && leaf_level(p, d, depth) >= depth => {
+                LeafStop::Finest
+            }
+            Some(_) => LeafStop::Sized,
+        }
+    }
+
+    /// Its name in reports: `no_dimension`, `flat`, `finest` or `sized`.
+    pub fn name(self) -> &'static str {
+        match self {
+            LeafStop::NoDimension => "no_dimension",
+            LeafStop::Flat => "flat",
+            LeafStop::Finest => "finest",
+            LeafStop::Sized => "sized",
+        }
+    }
+}
+
 /// Whether a region of dimension `d` at `level` subdivides, in a pyramid of `depth` levels.
 pub fn subdivides(p: &FractalParams, d: Option<f32>, level: u8, depth: u8) -> bool {
     let Some(d) = d else { return false };
@@ -173,6 +227,21 @@ pub fn fractal_leaves(
     shape: &TileShape,
     params: &FractalParams,
 ) -> Vec<FractalLeaf> {
+    fractal_leaves_with_progress(grid, spacing, shape, params, |_| {})
+}
+
+/// [`fractal_leaves`], calling `progress` after each leaf with the fraction of the grid's
+/// cells the leaves so far cover (1 after the last; nothing while the root is measured).
+pub fn fractal_leaves_with_progress(
+    grid: &HeightGrid<'_>,
+    spacing: [f64; 2],
+    shape: &TileShape,
+    params: &FractalParams,
+    mut progress: impl FnMut(f64),
+) -> Vec<FractalLeaf> {
+    let cells = |s: TileSpan| f64::from(s.cols.1 - s.cols.0) * f64::from(s.rows.1 - s.rows.0);
+    let total = cells(shape.span(TileId::ROOT)).max(1.0);
+    let mut covered = 0.0;
     let mut leaves = Vec::new();
     let mut stack = vec![TileId::ROOT];
     while let Some(t) = stack.pop() {
@@ -187,6 +256,8 @@ pub fn fractal_leaves(
                 tile: t,
                 dimension: d,
             });
+            covered += cells(span);
+            progress(covered / total);
         }
     }
     leaves

@@ -164,3 +164,80 @@ fn the_split_rule_is_log_linear_between_the_thresholds() {
     assert!(!subdivides(&p, Some(2.2), 2, 4));
     assert!(!subdivides(&p, None, 0, 4));
 }
+
+#[test]
+fn leaf_level_agrees_with_the_split_rule() {
+    for p in [
+        FractalParams::default(),
+        FractalParams {
+            flat: 2.0,
+            rough: 2.4,
+            scales: 5,
+        },
+        // Equal thresholds: a step from the whole grid to the finest tiles.
+        FractalParams {
+            flat: 2.02,
+            rough: 2.02,
+            scales: 5,
+        },
+    ] {
+        for depth in 0..=6u8 {
+            for k in 0..=400 {
+                let d = 1.99 + 0.001 * k as f32;
+                let ll = leaf_level(&p, d, depth);
+                assert!(ll <= depth);
+                for level in 0..=depth {
+                    assert_eq!(
+                        subdivides(&p, Some(d), level, depth),
+                        level < ll,
+                        "{p:?} d {d} level {level} depth {depth}"
+                    );
+                }
+            }
+        }
+    }
+    let p = FractalParams::default();
+    assert_eq!(leaf_level(&p, 2.0, 5), 0);
+    assert_eq!(leaf_level(&p, 2.5, 5), 5);
+    assert_eq!(leaf_level(&p, f32::NAN, 5), 0);
+}
+
+#[test]
+fn leaves_say_why_they_stopped() {
+    let p = FractalParams::default();
+    let leaf = |level, d| FractalLeaf {
+        tile: TileId { level, x: 0, y: 0 },
+        dimension: d,
+    };
+    assert_eq!(LeafStop::of(&p, &leaf(3, None), 3), LeafStop::NoDimension);
+    assert_eq!(LeafStop::of(&p, &leaf(0, Some(2.005)), 3), LeafStop::Flat);
+    assert_eq!(LeafStop::of(&p, &leaf(3, Some(2.005)), 3), LeafStop::Flat);
+    assert_eq!(LeafStop::of(&p, &leaf(3, Some(2.2)), 3), LeafStop::Finest);
+    // Between the thresholds: a third of the way allows level 1 leaves.
+    assert_eq!(leaf_level(&p, 2.02, 3), 1);
+    assert_eq!(LeafStop::of(&p, &leaf(1, Some(2.02)), 3), LeafStop::Sized);
+    assert_eq!(LeafStop::of(&p, &leaf(3, Some(2.02)), 3), LeafStop::Sized);
+    // Close enough below rough that only the finest tiles are allowed.
+    assert_eq!(leaf_level(&p, 2.039, 3), 3);
+    assert_eq!(LeafStop::of(&p, &leaf(3, Some(2.039)), 3), LeafStop::Finest);
+}
+
+#[test]
+fn progress_reaches_one_and_never_goes_back() {
+    let n = 257;
+    let z = fbm(n, 0.5, 1000.0, 7);
+    let g = HeightGrid::new(n, n, &z).unwrap();
+    let shape = TileShape::new(n as u32, n as u32, 32).unwrap();
+    let mut seen = Vec::new();
+    let leaves =
+        fractal_leaves_with_progress(&g, [30.0, 30.0], &shape, &FractalParams::default(), |f| {
+            seen.push(f)
+        });
+    assert_eq!(seen.len(), leaves.len());
+    assert!(seen.windows(2).all(|w| w[0] < w[1]), "{seen:?}");
+    assert!((seen.last().unwrap() - 1.0).abs() < 1e-12);
+    assert_eq!(
+        leaves,
+        fractal_leaves(&g, [30.0, 30.0], &shape, &FractalParams::default())
+    );
+}
