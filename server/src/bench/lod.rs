@@ -261,7 +261,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
             let rep = mesh::check_mesh(shape, |n| shape.grid_pos(n), &mesh.triangles());
             r.cracks += rep.cracks as u64;
             r.folds += rep.folds as u64;
-            r.px.measure(&flight, dem, &tris, f, &lens);
+            r.px.measure(flight, dem, &tris, f, &lens);
         }
         bar.inc(1);
     }
@@ -277,7 +277,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         triangles_median: median(&r.triangles),
         triangles_max: quantile(&r.triangles, 1.0),
         full_res_triangles: 2 * (w as u64 - 1) * (h as u64 - 1),
-        px: r.px.summary(&flight),
+        px: r.px.summary(flight),
         cracks: r.cracks,
         folds: r.folds,
         oracle_checks: r.oracle_checks,

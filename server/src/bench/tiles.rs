@@ -339,7 +339,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
         }
         if f % flight.px_every == 0 {
             let tris = world_triangles(&mirror, &active, geom);
-            r.px.measure(&flight, dem, &tris, f, &lens);
+            r.px.measure(flight, dem, &tris, f, &lens);
         }
         bar.inc(1);
     }
@@ -363,7 +363,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
         triangles_median: median(&r.triangles),
         triangles_max: quantile(&r.triangles, 1.0),
         full_res_triangles: 2 * (w as u64 - 1) * (h as u64 - 1),
-        px: r.px.summary(&flight),
+        px: r.px.summary(flight),
         desyncs: r.desyncs,
         cost: CostSummary::of(&r.update_us, &r.scratch_us, &r.client_us),
         tiles_active_median: median(&r.active),
