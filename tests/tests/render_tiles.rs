@@ -4,6 +4,8 @@
 //! through the terrain; with nothing against cracks it does (so the test can fail). It also
 //! prints what paper 001's rule alone (dropped patches, no raised ones) would leave.
 //!
+//! The same for the adaptive meshes `rqt` (skirts) and `tin` (shared borders, or skirts).
+//!
 //! The server serves the embedded crop built with 16-cell tiles (five levels, so level seams
 //! and patches are everywhere), and frames are drawn one pose interval after their pose, as
 //! `shot` and `render-bench` draw them: tiles that arrived by a split are mid-morph.
@@ -13,6 +15,7 @@ use relief_client::render::offscreen::{FORMAT, Offscreen, enclosed_background};
 use relief_client::render::{FrameParams, Gpu, TileRenderer, TileScene};
 use relief_client::session::{Session, SessionConfig};
 use relief_proto::msg::{CrackMode, StreamKind, TileStreamParams};
+use relief_proto::tile::body::MeshKind;
 use relief_proto::view::Lens;
 use relief_server::serve::config::{Limits, ServeConfig, TerrainSource};
 use relief_tests::{TestServer, path};
@@ -154,19 +157,17 @@ async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes)
     (all, dropped)
 }
 
-/// The standard path at tau 1 and at tau 8, on the crop's 16-cell tile pyramid.
-#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn tiles_show_no_cracks_with_patches_or_skirts_and_cracks_without() {
-    let t0 = Instant::now();
+/// A server of the embedded crop built with 16-cell tiles meshed as `mesh`, and its folder.
+async fn serve(mesh: MeshKind) -> (tempfile::TempDir, TestServer) {
     let dir = tempfile::tempdir().unwrap();
     let store = dir.path().join("fuji16.relief");
     let dem = relief_server::dem::embedded_default().unwrap();
     let opts = relief_server::preprocess::BuildOptions {
         tile_size: TILE,
+        tile_mesh: mesh,
         ..Default::default()
     };
     relief_server::preprocess::build_store(&dem, &store, &opts).unwrap();
-    let built = t0.elapsed();
     let server = TestServer::start_with(ServeConfig {
         source: TerrainSource::Store(store),
         addr: "127.0.0.1:0".parse().unwrap(),
@@ -174,6 +175,58 @@ async fn tiles_show_no_cracks_with_patches_or_skirts_and_cracks_without() {
         limits: Limits::default(),
     })
     .await;
+    (dir, server)
+}
+
+/// The adaptive meshes (issue 13) along the same path at tau 1 and 8: `rqt` tiles with skirts
+/// and `tin` tiles with their shared borders alone (the session asks for patches; `tin` tiles
+/// carry none) or with skirts show no crack; `rqt` tiles with nothing do (so the test can see
+/// the cracks that adaptive tiles open).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn adaptive_tiles_show_no_cracks_with_skirts_or_shared_borders() {
+    let gpu = Gpu::headless().unwrap_or_else(|e| panic!("{e}"));
+    let (_dir, rqt) = serve(MeshKind::Rqt).await;
+    let (_dir2, tin) = serve(MeshKind::Tin).await;
+    let mut rqt_none = 0;
+    for tau in [1.0, 8.0] {
+        let (rqt_skirts, _) = fly(&gpu, &rqt.url(), CrackMode::Skirts, tau).await;
+        let (none, _) = fly(&gpu, &rqt.url(), CrackMode::None, tau).await;
+        let (shared, _) = fly(&gpu, &tin.url(), CrackMode::Patches, tau).await;
+        let (tin_skirts, _) = fly(&gpu, &tin.url(), CrackMode::Skirts, tau).await;
+        eprintln!(
+            "tau {tau}: enclosed background pixels over {} frames: rqt+skirts {}, rqt+none {} \
+             (in {} frames), tin+shared-borders {}, tin+skirts {}; levels {:?}",
+            rqt_skirts.frames,
+            rqt_skirts.pixels,
+            none.pixels,
+            none.at.len(),
+            shared.pixels,
+            tin_skirts.pixels,
+            shared.levels,
+        );
+        assert!(
+            shared.frames >= 120 && shared.levels.len() >= 3,
+            "{shared:?}"
+        );
+        assert_eq!(rqt_skirts.pixels, 0, "rqt+skirts: {:?}", rqt_skirts.at);
+        assert_eq!(shared.pixels, 0, "tin+shared-borders: {:?}", shared.at);
+        assert_eq!(tin_skirts.pixels, 0, "tin+skirts: {:?}", tin_skirts.at);
+        rqt_none += none.pixels;
+    }
+    assert!(
+        rqt_none > 0,
+        "rqt tiles with nothing show no crack: the test cannot see them"
+    );
+    rqt.stop().await;
+    tin.stop().await;
+}
+
+/// The standard path at tau 1 and at tau 8, on the crop's 16-cell tile pyramid.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn tiles_show_no_cracks_with_patches_or_skirts_and_cracks_without() {
+    let t0 = Instant::now();
+    let (_dir, server) = serve(MeshKind::Grid).await;
+    let built = t0.elapsed();
     let gpu = Gpu::headless().unwrap_or_else(|e| panic!("{e}"));
     let url = server.url();
     let (mut none_total, mut morphing, mut moved) = (0, 0, 0);

@@ -206,6 +206,8 @@ fn fly(
                 path: o.path,
                 px_every: o.px_every,
                 poses: o.poses,
+                oracle_frames: 1,
+                cross_checks: false,
                 ..Default::default()
             };
             opts.params.tau = tau as f32;
@@ -232,6 +234,7 @@ fn fly(
                 tile_mesh: mesh,
                 px_every: o.px_every,
                 poses: o.poses,
+                cross_checks: false,
                 ..Default::default()
             };
             let r = tiles::fly(dem, flight, &opts)?;

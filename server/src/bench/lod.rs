@@ -40,6 +40,9 @@ pub struct LodBenchOptions {
     pub px_min_samples: u64,
     /// Check the incremental mesh against the oracle on this many evenly spread frames.
     pub oracle_frames: usize,
+    /// Also run the paper's full pass and the from-scratch cut every pose (their costs and
+    /// agreement); `bench compare` leaves them out, as they change none of its figures.
+    pub cross_checks: bool,
     /// Fly only the path's first poses (`None`: all of them).
     pub poses: Option<usize>,
     /// Show progress on stderr.
@@ -54,6 +57,7 @@ impl Default for LodBenchOptions {
             px_every: None,
             px_min_samples: 4_000_000,
             oracle_frames: 12,
+            cross_checks: true,
             poses: None,
             progress: false,
         }
@@ -207,19 +211,21 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         entropy.add(&delta, geom.z_quantum);
         r.visited.push(st.visited as f64);
 
-        let mut pst = UpdateStats::default();
-        let t0 = Instant::now();
-        let paper = engine.update(&mut paper_cut, &view, &p, f as u64, &mut pst);
-        r.paper_us.push(t0.elapsed().as_secs_f64() * 1e6);
-        r.paper_visited.push(pst.visited as f64);
-        if paper.digest != delta.digest {
-            r.paper_mismatches += 1;
-        }
+        if opts.cross_checks {
+            let mut pst = UpdateStats::default();
+            let t0 = Instant::now();
+            let paper = engine.update(&mut paper_cut, &view, &p, f as u64, &mut pst);
+            r.paper_us.push(t0.elapsed().as_secs_f64() * 1e6);
+            r.paper_visited.push(pst.visited as f64);
+            if paper.digest != delta.digest {
+                r.paper_mismatches += 1;
+            }
 
-        let t0 = Instant::now();
-        let scratch = engine.initial_cut(&view, &p, &mut UpdateStats::default());
-        r.scratch_us.push(t0.elapsed().as_secs_f64() * 1e6);
-        std::hint::black_box(scratch.digest());
+            let t0 = Instant::now();
+            let scratch = engine.initial_cut(&view, &p, &mut UpdateStats::default());
+            r.scratch_us.push(t0.elapsed().as_secs_f64() * 1e6);
+            std::hint::black_box(scratch.digest());
+        }
 
         let t0 = Instant::now();
         let decoded = unwire(&bytes, geom)?;

@@ -53,6 +53,9 @@ pub struct TileBenchOptions {
     pub px_min_samples: u64,
     /// Fly only the path's first poses (`None`: all of them).
     pub poses: Option<usize>,
+    /// Also select from scratch every pose and measure the pops (their costs and figures);
+    /// `bench compare` leaves them out, as they change none of its figures.
+    pub cross_checks: bool,
     /// Show progress on stderr.
     pub progress: bool,
 }
@@ -68,6 +71,7 @@ impl Default for TileBenchOptions {
             px_every: None,
             px_min_samples: 4_000_000,
             poses: None,
+            cross_checks: true,
             progress: false,
         }
     }
@@ -251,9 +255,11 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
         let update_us = t0.elapsed().as_secs_f64() * 1e6;
 
         let t0 = Instant::now();
-        let scratch = engine.select(&view, opts.tau, 0.9, &TileBits::default(), false);
+        if opts.cross_checks {
+            let scratch = engine.select(&view, opts.tau, 0.9, &TileBits::default(), false);
+            std::hint::black_box(scratch.stats.forced);
+        }
         let scratch_us = t0.elapsed().as_secs_f64() * 1e6;
-        std::hint::black_box(scratch.stats.forced);
 
         let t0 = Instant::now();
         let applied = match codec::decode::<ServerMsg>(&msg, codec::HARD_LIMIT)? {
@@ -326,7 +332,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
         r.ratio_frames += u64::from(u.stats.ratio_gt_3 == u.stats.ratio_tiles);
         r.violations += restriction_violations(shape, &active) as u64;
         r.session_bytes.push(session.memory_bytes() as f64);
-        if f > 0 {
+        if f > 0 && opts.cross_checks {
             pops(
                 &mirror,
                 &changes.removed,
