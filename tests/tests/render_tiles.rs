@@ -217,6 +217,21 @@ async fn adaptive_tiles_show_no_cracks_with_skirts_or_shared_borders() {
         rqt_none > 0,
         "rqt tiles with nothing show no crack: the test cannot see them"
     );
+    // rqt tiles carry no patches: asking for them is refused with a reason, not served open.
+    let config = SessionConfig {
+        stream: StreamKind::Tiles(TileStreamParams {
+            cache_tiles: 256,
+            crack: CrackMode::Patches,
+        }),
+        ..SessionConfig::new(&rqt.url())
+    };
+    let refused = Session::connect(config).await.err().map(|e| e.to_string());
+    assert!(
+        refused
+            .as_deref()
+            .is_some_and(|e| e.contains("ask for skirts")),
+        "{refused:?}"
+    );
     rqt.stop().await;
     tin.stop().await;
 }
