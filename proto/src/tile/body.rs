@@ -359,6 +359,14 @@ fn predict(z: &[i64], nx: usize, i: usize, j: usize) -> i64 {
     }
 }
 
+/// A mesh blob's start, every kind alike: the 2-bit kind and the lowest height as 32 bits.
+fn mesh_header(kind: MeshKind, zmin: i32) -> BitWriter {
+    let mut w = BitWriter::new();
+    w.put(kind as u32, 2);
+    w.put(zmin as u32, 32);
+    w
+}
+
 /// Packs a grid mesh with vertex heights `z` (row-major over `span`).
 pub fn encode_mesh(span: &TileSpan, z: &[i32]) -> Vec<u8> {
     let nx = span.nx() as usize;
@@ -368,9 +376,7 @@ pub fn encode_mesh(span: &TileSpan, z: &[i32]) -> Vec<u8> {
         .map(|at| v[at] - predict(&v, nx, at % nx, at / nx))
         .collect();
     let k = best_order(res.iter().map(|&r| crate::bits::zigzag(r)), 15);
-    let mut w = BitWriter::new();
-    w.put(MeshKind::Grid as u32, 2);
-    w.put(zmin as u32, 32);
+    let mut w = mesh_header(MeshKind::Grid, zmin);
     w.put(k, 4);
     for r in res {
         w.put_eg_signed(r, k);

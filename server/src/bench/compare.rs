@@ -20,7 +20,7 @@
 //! The curve: each stream is also tuned to the target's other `--levels` (e.g. 0.5x and 2x),
 //! which gives bytes against measured error at three error levels, plotted to an SVG.
 
-use super::flight::Flight;
+use super::flight::{CostSummary, Flight, PxSummary, WireSummary};
 use super::{lod, tiles};
 use crate::dem::Dem;
 use crate::preprocess::BuildOptions;
@@ -140,6 +140,31 @@ pub struct Flown {
     pub desyncs: u64,
 }
 
+impl Flown {
+    /// A flight's figures from a bench report's parts.
+    fn of(
+        tau: f64,
+        px: &PxSummary,
+        wire: &WireSummary,
+        triangles_median: f64,
+        cost: &CostSummary,
+        desyncs: u64,
+    ) -> Flown {
+        Flown {
+            tau,
+            p99_px: px.px_error_p99_median,
+            bytes_total: wire.bytes_total,
+            gzip_bytes_total: wire.gzip_bytes_total,
+            bytes_per_s: (wire.bytes_per_s_mean, wire.bytes_per_s_p99),
+            gzip_bytes_per_s: (wire.gzip_bytes_per_s_mean, wire.gzip_bytes_per_s_p99),
+            triangles_median,
+            server_us_median: cost.update_us_median,
+            client_us_median: cost.client_us_median,
+            desyncs,
+        }
+    }
+}
+
 /// A stream tuned to one error level.
 #[derive(Clone, Debug, Serialize)]
 pub struct Tuned {
@@ -177,7 +202,7 @@ pub struct CompareReport {
     pub path: String,
     /// Poses flown.
     pub frames: usize,
-    /// The target p99, pixels, and the band's half-width as a fraction.
+    /// The target p99, pixels.
     pub target_px: f64,
     /// The band's half-width, fraction of the target.
     pub within: f64,
@@ -212,18 +237,8 @@ fn fly(
             };
             opts.params.tau = tau as f32;
             let r = lod::fly(dem, flight, &opts)?;
-            Flown {
-                tau,
-                p99_px: r.px.px_error_p99_median,
-                bytes_total: r.wire.bytes_total,
-                gzip_bytes_total: r.wire.gzip_bytes_total,
-                bytes_per_s: (r.wire.bytes_per_s_mean, r.wire.bytes_per_s_p99),
-                gzip_bytes_per_s: (r.wire.gzip_bytes_per_s_mean, r.wire.gzip_bytes_per_s_p99),
-                triangles_median: r.triangles_median,
-                server_us_median: r.cost.update_us_median,
-                client_us_median: r.cost.client_us_median,
-                desyncs: r.desyncs,
-            }
+            let (px, wire) = (r.px, r.wire);
+            Flown::of(tau, &px, &wire, r.triangles_median, &r.cost, r.desyncs)
         }
         StreamSpec::Tiles(mesh, crack) => {
             let opts = tiles::TileBenchOptions {
@@ -238,18 +253,7 @@ fn fly(
                 ..Default::default()
             };
             let r = tiles::fly(dem, flight, &opts)?;
-            Flown {
-                tau,
-                p99_px: r.px.px_error_p99_median,
-                bytes_total: r.wire.bytes_total,
-                gzip_bytes_total: r.wire.gzip_bytes_total,
-                bytes_per_s: (r.wire.bytes_per_s_mean, r.wire.bytes_per_s_p99),
-                gzip_bytes_per_s: (r.wire.gzip_bytes_per_s_mean, r.wire.gzip_bytes_per_s_p99),
-                triangles_median: r.triangles_median,
-                server_us_median: r.cost.update_us_median,
-                client_us_median: r.cost.client_us_median,
-                desyncs: r.desyncs,
-            }
+            Flown::of(tau, &r.px, &r.wire, r.triangles_median, &r.cost, r.desyncs)
         }
     })
 }

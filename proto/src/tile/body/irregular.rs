@@ -15,8 +15,8 @@
 //! Checks on decode: every vertex inside the span, every index at most the high-water mark,
 //! every vertex used, counts no larger than a triangulation of the span's samples can have.
 
-use super::{MeshKind, TileBodyError, finished};
-use crate::bits::{BitReader, BitWriter, best_order, zigzag};
+use super::{MeshKind, TileBodyError, finished, mesh_header};
+use crate::bits::{BitReader, best_order, zigzag};
 use crate::tile::TileSpan;
 
 /// An irregular mesh's vertices and triangles (its heights are kept beside it, one per vertex).
@@ -115,9 +115,7 @@ pub fn encode_irregular(mesh: &IrregularMesh, z: &[i32]) -> Vec<u8> {
     let kp = best_order(dp.iter().map(|&d| zigzag(d)), 15);
     let kz = best_order(dz.iter().map(|&d| zigzag(d)), 15);
     let kt = best_order(codes.iter().copied(), 15);
-    let mut w = BitWriter::new();
-    w.put(mesh.kind as u32, 2);
-    w.put(zmin as u32, 32);
+    let mut w = mesh_header(mesh.kind, zmin);
     w.put_eg(mesh.at.len() as u64, 8);
     w.put_eg(mesh.triangles.len() as u64, 8);
     for k in [kp, kz, kt] {

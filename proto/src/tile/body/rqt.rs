@@ -16,8 +16,8 @@
 //! square with `2^k + 1` vertices a side), so vertex `[i, j]` stands on sample offset
 //! `[i * stride, j * stride]`.
 
-use super::{IrregularMesh, MeshKind, TileBodyError, finished};
-use crate::bits::{BitReader, BitWriter, best_order, zigzag};
+use super::{IrregularMesh, MeshKind, TileBodyError, finished, mesh_header};
+use crate::bits::{BitReader, best_order, zigzag};
 use crate::tile::TileSpan;
 
 /// A lattice position `[col, row]`.
@@ -116,9 +116,7 @@ pub fn encode_rqt(
             .chain(events.iter().filter(|e| e.0).map(|e| zigzag(e.1))),
         15,
     );
-    let mut w = BitWriter::new();
-    w.put(MeshKind::Rqt as u32, 2);
-    w.put(zmin as u32, 32);
+    let mut w = mesh_header(MeshKind::Rqt, zmin);
     w.put(k, 4);
     for c in corner_codes {
         w.put_eg(c, k);
