@@ -45,13 +45,16 @@ fn limits(span: &TileSpan) -> (u64, u64) {
 /// near each other). Returns the mesh and heights in the new order, as they decode.
 pub fn canonical(mesh: &IrregularMesh, z: &[i32]) -> (IrregularMesh, Vec<i32>) {
     let mut tris = mesh.triangles.clone();
-    // Morton order of the triangles' centroids (times 3, to stay in integers).
+    // Scan order of each triangle's northernmost, then westernmost vertex. (Morton order of the
+    // centroids made synthetic:1025's tin tiles 14 % smaller raw but 4 % larger gzipped, and
+    // the streams are compared gzipped.)
     let key = |t: &[u32; 3]| {
-        let c = t.iter().fold([0u64; 2], |a, &v| {
-            let p = mesh.at[v as usize];
-            [a[0] + u64::from(p[0]), a[1] + u64::from(p[1])]
-        });
-        morton(c[0]) | morton(c[1]) << 1
+        t.iter()
+            .map(|&v| {
+                let p = mesh.at[v as usize];
+                (p[1], p[0])
+            })
+            .min()
     };
     tris.sort_by_key(key);
     let mut new_of = vec![u32::MAX; mesh.at.len()];
@@ -73,16 +76,6 @@ pub fn canonical(mesh: &IrregularMesh, z: &[i32]) -> (IrregularMesh, Vec<i32>) {
         },
         order.iter().map(|&v| z[v as usize]).collect(),
     )
-}
-
-/// `v`'s low 32 bits spread to the even bits.
-fn morton(v: u64) -> u64 {
-    let mut x = v & 0xffff_ffff;
-    x = (x | x << 16) & 0x0000_ffff_0000_ffff;
-    x = (x | x << 8) & 0x00ff_00ff_00ff_00ff;
-    x = (x | x << 4) & 0x0f0f_0f0f_0f0f_0f0f;
-    x = (x | x << 2) & 0x3333_3333_3333_3333;
-    (x | x << 1) & 0x5555_5555_5555_5555
 }
 
 /// Packs an irregular mesh with vertex heights `z`, in [`canonical`] order (vertices no
