@@ -128,8 +128,8 @@ enum BenchCommand {
     Compare {
         #[command(flatten)]
         run: BenchArgs,
-        /// Measured p99 pixel error every stream is tuned to (--tau is the first guess only
-        /// for none: each stream starts at tau = this target).
+        /// Measured p99 pixel error every stream is tuned to (--tau is not used: each stream's
+        /// tuning starts at tau = this target).
         #[arg(long, default_value_t = 1.0)]
         target_px: f64,
         /// How close the measured p99 must come, as a fraction of the target.

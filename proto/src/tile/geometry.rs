@@ -195,6 +195,8 @@ impl TileData {
 /// coarse grid over the tile, so that a look-up tests a few triangles, not all.
 pub struct Surface<'a> {
     tile: &'a TileData,
+    /// A grid tile's heights as floats (converted once, not per look-up).
+    grid_z: Vec<f32>,
     /// Buckets per side.
     n: usize,
     /// Sample offsets per bucket side.
@@ -229,8 +231,13 @@ impl<'a> Surface<'a> {
                 }
             }
         }
+        let grid_z = match tile.irregular {
+            None => tile.z.iter().map(|&q| q as f32).collect(),
+            Some(_) => Vec::new(),
+        };
         Surface {
             tile,
+            grid_z,
             n,
             cell,
             buckets,
@@ -239,10 +246,12 @@ impl<'a> Surface<'a> {
 
     /// As [`TileData::height_at`].
     pub fn height_at(&self, col: f32, row: f32) -> Option<f32> {
-        let Some(m) = &self.tile.irregular else {
-            return self.tile.height_at(col, row);
-        };
         let s = &self.tile.span;
+        let Some(m) = &self.tile.irregular else {
+            let inside = (s.cols.0 as f32..=s.cols.1 as f32).contains(&col)
+                && (s.rows.0 as f32..=s.rows.1 as f32).contains(&row);
+            return inside.then(|| grid_height(s, &self.grid_z, col, row));
+        };
         let p = [
             f64::from(col) - f64::from(s.cols.0),
             f64::from(row) - f64::from(s.rows.0),

@@ -176,6 +176,7 @@ pub fn crack_triangles(shape: &TileShape, records: &[TileRecord], tiles: &[u32])
 mod tests {
     use super::*;
     use relief_proto::tile::body::decode_mesh;
+    use relief_proto::tile::geometry::Surface;
     use relief_proto::tile::mirror::TileData;
 
     /// For every mesh kind: each tile's blob decodes, and its recorded error bounds the
@@ -206,10 +207,15 @@ mod tests {
                     irregular: m.irregular,
                     patches: Default::default(),
                 };
+                let surface = Surface::new(&data);
                 let mut worst = 0f32;
                 for rr in span.rows.0..=span.rows.1 {
                     for c in span.cols.0..=span.cols.1 {
-                        let z = data.height_at(c as f32, rr as f32).expect("covered") * q;
+                        let at = data.height_at(c as f32, rr as f32).expect("covered");
+                        // The bucketed surface finds the same height.
+                        let fast = surface.height_at(c as f32, rr as f32).expect("covered");
+                        assert!((fast - at).abs() < 1e-3, "{kind:?} {t:?} {c} {rr}");
+                        let z = at * q;
                         worst = worst.max((z - heights[(rr * w + c) as usize]).abs());
                     }
                 }
