@@ -59,6 +59,10 @@ pub enum TileBodyError {
     /// vertex unused.
     #[error("tile mesh triangle index out of order or range")]
     Index,
+    /// Patches asked for against heights that are not the tile's grid (`got` heights, `want`
+    /// expected): an irregular mesh, or a mesh of another tile.
+    #[error("tile patches need {1} grid heights, got {0}")]
+    Heights(usize, usize),
     /// A patch blob where the mesh kind carries none.
     #[error("tile mesh kind {0} carries no patch blob")]
     PatchesUnexpected(u32),
@@ -316,6 +320,10 @@ pub fn decode_patches(
     z: &[i32],
     bytes: &[u8],
 ) -> Result<Patches, TileBodyError> {
+    let want = shape.span(t).vertex_count();
+    if z.len() != want {
+        return Err(TileBodyError::Heights(z.len(), want));
+    }
     let mut r = BitReader::new(bytes);
     let k = r.get(4).ok_or(TileBodyError::Truncated)?;
     let mut p = Patches::default();

@@ -236,3 +236,19 @@ fn grid_heights_interpolate_the_two_triangles() {
     assert_eq!(grid_triangles(&sp).len(), 2 * 4 * 3);
     assert_eq!(skirt_triangle_count(&sp), 4 * (4 + 3));
 }
+
+/// Patches decode only against the tile's own grid heights: an irregular mesh's heights (or
+/// another tile's) are refused, not indexed out of range (a CI run found the panic).
+#[test]
+fn patches_refuse_heights_that_are_not_the_tiles_grid() {
+    let shape = TileShape::new(200, 150, 64).unwrap();
+    let t = shape.tile(1).unwrap();
+    let want = shape.span(t).vertex_count();
+    let blob = [0u8, 0xff, 0xff, 0xff];
+    for got in [0, 8, want - 1, want + 1] {
+        assert_eq!(
+            decode_patches(&shape, t, &vec![0; got], &blob),
+            Err(TileBodyError::Heights(got, want))
+        );
+    }
+}
