@@ -1,6 +1,7 @@
 //! `relief-server build`: a DEM in, a store out.
 
 use crate::dem::Dem;
+use crate::geo::GeoTransform;
 use crate::store::{StoreError, StoreInput, StoreMeta, write_store};
 use relief_proto::tile::body::MeshKind;
 use std::path::Path;
@@ -113,6 +114,14 @@ fn build(
         .iter()
         .fold((f32::MAX, f32::MIN), |(a, b), &h| (a.min(h), b.max(h)));
     check_quantum(quantum, f64::from(lo), f64::from(hi)).map_err(StoreError::Input)?;
+    let bounds = match &dem.georef {
+        Some(g) => Some(
+            GeoTransform::new(g)
+                .and_then(|t| t.bounds(dem.width, dem.height))
+                .map_err(|e| StoreError::Input(e.to_string()))?,
+        ),
+        None => None,
+    };
     let input = StoreInput {
         width: dem.width,
         height: dem.height,
@@ -130,6 +139,8 @@ fn build(
             void_count: voids.iter().filter(|v| **v).count() as u64,
             cache_key,
             tile_mesh: opts.tile_mesh.name().into(),
+            georef: dem.georef.clone(),
+            bounds,
         },
     };
     let bar = crate::bench::progress_bar(progress, 1000, "tree and tiles");

@@ -21,6 +21,12 @@ pub struct DemArgs {
     /// Ground metres between rows (required for PNG; overrides the GeoTIFF's tags).
     #[arg(long)]
     pub spacing_y: Option<f64>,
+    /// Place input that carries no georeference (synthetic, PNG) on the Earth: the longitude
+    /// and latitude in degrees of its north-west sample, as `LON,LAT` (e.g. `--origin
+    /// 138.5,35.5`). The standard formats (/cesium, /tiles) need a georeference; GeoTIFFs
+    /// carry their own.
+    #[arg(long, value_name = "LON,LAT", value_parser = parse_origin, allow_hyphen_values = true)]
+    pub origin: Option<(f64, f64)>,
     /// Refuse DEMs with more samples than this.
     #[arg(long, default_value_t = DEFAULT_MAX_SAMPLES)]
     pub max_samples: u64,
@@ -41,6 +47,7 @@ impl DemArgs {
                 offset: self.png_offset,
                 nodata_value: u16::try_from(self.png_nodata).ok(),
             },
+            origin: self.origin,
             progress: !self.quiet,
         }
     }
@@ -61,7 +68,22 @@ impl Default for DemArgs {
             spacing_x: None,
             spacing_y: None,
             max_samples: o.max_samples,
+            origin: None,
             quiet: false,
         }
     }
+}
+
+/// Parses `LON,LAT` in degrees.
+fn parse_origin(s: &str) -> Result<(f64, f64), String> {
+    let bad = || format!("expected LON,LAT in degrees, as in 138.5,35.5; got {s:?}");
+    let (lon, lat) = s.split_once(',').ok_or_else(bad)?;
+    let lon: f64 = lon.trim().parse().map_err(|_| bad())?;
+    let lat: f64 = lat.trim().parse().map_err(|_| bad())?;
+    if !(-180.0..=180.0).contains(&lon) || !(-85.0..=85.0).contains(&lat) {
+        return Err(format!(
+            "origin {lon},{lat}: the longitude must be in -180..180 and the latitude in -85..85"
+        ));
+    }
+    Ok((lon, lat))
 }

@@ -107,7 +107,8 @@ pub enum DemError {
         /// What is missing or wrong.
         detail: String,
     },
-    /// PNG decoding options that make no heights (non-finite scale or offset).
+    /// Read options that make no heights or no place (non-finite PNG scale or offset, an
+    /// `--origin` off the globe or given to a georeferenced file).
     #[error("{input}: {detail}")]
     BadOptions {
         /// The input.

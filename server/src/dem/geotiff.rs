@@ -15,6 +15,8 @@
 //!   one spacing per grid.
 
 use super::{DemError, LoadOptions, RawGrid, VoidMask, check_size};
+use crate::geo::Georef;
+use crate::geo::ellipsoid::metres_per_degree;
 use std::io::{Read, Seek};
 use tiff::ColorType;
 use tiff::decoder::{Decoder, DecodingResult, Limits};
@@ -26,11 +28,12 @@ const MODEL_TYPE_GEOGRAPHIC: u16 = 2;
 /// GeoKey GeographicTypeGeoKey and ProjectedCSTypeGeoKey, for the CRS name.
 const GEOGRAPHIC_TYPE: u16 = 2048;
 const PROJECTED_CS_TYPE: u16 = 3072;
+/// GeoKey GTRasterTypeGeoKey and its value for pixels that are points (the default, 1, makes
+/// them areas, so that the tie point is a pixel's corner).
+const GT_RASTER_TYPE: u16 = 1025;
+const RASTER_PIXEL_IS_POINT: u16 = 2;
 /// The GeoKey value meaning "user-defined", which names no EPSG code.
 const USER_DEFINED: u16 = 32767;
-/// WGS 84 semi-major axis (m) and first eccentricity squared.
-const WGS84_A: f64 = 6_378_137.0;
-const WGS84_E2: f64 = 6.694_379_990_141_316e-3;
 
 /// Reads a GeoTIFF from `reader`; `name` is used in messages.
 pub fn read<R: Read + Seek>(
@@ -102,6 +105,7 @@ pub fn read<R: Read + Seek>(
         voids,
         spacing: geo.spacing(w, h),
         crs: geo.crs(),
+        georef: geo.georef(),
         nan_is_void,
     })
 }
@@ -164,6 +168,37 @@ impl GeoTags {
             .map(|c| format!("EPSG:{c}"))
     }
 
+    /// Where the samples lie, when the file names an EPSG CRS and places the grid north-up
+    /// without rotation; `None` otherwise (the terrain then serves no standard formats).
+    fn georef(&self) -> Option<Georef> {
+        let epsg = self.crs()?.strip_prefix("EPSG:")?.parse().ok()?;
+        if let Some(m) = self.matrix.as_deref().filter(|_| self.scale.is_none()) {
+            // Rotated, sheared or south-up grids are not regular in their CRS's axes.
+            if m.len() < 16 || m[1] != 0.0 || m[4] != 0.0 || m[5] >= 0.0 || m[0] <= 0.0 {
+                return None;
+            }
+        }
+        let Affine {
+            size: (sx, sy),
+            origin: Some((x, y)),
+        } = self.affine()?
+        else {
+            return None;
+        };
+        // A pixel that is an area has its sample at its centre, half a pixel in from the
+        // corner the tie point names.
+        let half = if self.key(GT_RASTER_TYPE) == Some(RASTER_PIXEL_IS_POINT) {
+            0.0
+        } else {
+            0.5
+        };
+        Some(Georef {
+            epsg,
+            first: [x + half * sx, y - half * sy],
+            step: [sx, sy],
+        })
+    }
+
     /// Pixel size and origin from ModelPixelScale and ModelTiepoint, or else from
     /// ModelTransformation.
     fn affine(&self) -> Option<Affine> {
@@ -224,18 +259,6 @@ struct Affine {
     size: (f64, f64),
     /// Model coordinates of the raster's (0, 0) corner, for the latitude, if known.
     origin: Option<(f64, f64)>,
-}
-
-/// Metres per degree of longitude and of latitude at latitude `lat` (degrees) on WGS 84: the
-/// parallel's radius N cos(lat) and the meridian's radius of curvature M, times pi/180, where
-/// N = a / sqrt(1 - e^2 sin^2 lat) and M = a (1 - e^2) / (1 - e^2 sin^2 lat)^(3/2).
-pub fn metres_per_degree(lat: f64) -> (f64, f64) {
-    let p = lat.to_radians();
-    let w2 = 1.0 - WGS84_E2 * p.sin() * p.sin();
-    let n = WGS84_A / w2.sqrt();
-    let m = WGS84_A * (1.0 - WGS84_E2) / (w2 * w2.sqrt());
-    let rad = std::f64::consts::PI / 180.0;
-    (n * p.cos() * rad, m * rad)
 }
 
 /// A sample type's name for messages.

@@ -36,6 +36,7 @@ pub use args::DemArgs;
 pub use error::DemError;
 pub use mask::VoidMask;
 
+use crate::geo::{GeoTransform, Georef};
 use std::io::{BufRead, BufReader};
 
 /// Samples accepted by default: exactly 16385 x 16385 (2^14 + 1 a side), the largest synthetic
@@ -65,6 +66,9 @@ pub struct Dem {
     pub source: String,
     /// Coordinate reference system of the source (as `EPSG:n`), when known, for metadata.
     pub crs: Option<String>,
+    /// Where the grid lies on the Earth: from the GeoTIFF's tags, or `--origin` for synthetic
+    /// and PNG input. The standard formats (quantized-mesh, terrain-RGB) need it.
+    pub georef: Option<Georef>,
 }
 
 impl Dem {
@@ -132,6 +136,9 @@ pub struct LoadOptions {
     pub spacing_y: Option<f64>,
     /// How to turn PNG values into metres.
     pub png: PngOptions,
+    /// Longitude and latitude (degrees) of the north-west sample, for input that carries no
+    /// georeference (synthetic, PNG); the grid is then WGS 84 degrees at the ground spacing.
+    pub origin: Option<(f64, f64)>,
     /// Show progress bars on long work (synthetic generation, void filling of big grids); tests
     /// and servers turn it off.
     pub progress: bool,
@@ -144,6 +151,7 @@ impl Default for LoadOptions {
             spacing_x: None,
             spacing_y: None,
             png: PngOptions::default(),
+            origin: None,
             progress: false,
         }
     }
@@ -164,6 +172,8 @@ pub struct RawGrid {
     pub spacing: Result<(f64, f64), String>,
     /// CRS from the file, if known.
     pub crs: Option<String>,
+    /// The georeference from the file, if it has a complete one.
+    pub georef: Option<Georef>,
     /// Whether NaN samples count as voids (the file declared NaN as no-data).
     pub nan_is_void: bool,
 }
@@ -307,6 +317,7 @@ pub fn finish(source: &str, mut raw: RawGrid, opts: &LoadOptions) -> Result<Dem,
         return Err(DemError::AllVoid(source.into()));
     }
     let spacing = spacing(source, &raw.spacing, opts)?;
+    let georef = georef(source, raw.georef.take(), spacing, opts)?;
     fill::fill_voids(
         raw.width,
         raw.height,
@@ -322,8 +333,36 @@ pub fn finish(source: &str, mut raw: RawGrid, opts: &LoadOptions) -> Result<Dem,
         heights: raw.heights,
         voids: raw.voids,
         source: source.into(),
-        crs: raw.crs,
+        crs: georef.as_ref().map(Georef::crs).or(raw.crs),
+        georef,
     })
+}
+
+/// The grid's georeference: the file's, or one placed by `--origin`, which a georeferenced
+/// file refuses (its own tags say where it lies). The CRS must be one Relief can convert.
+fn georef(
+    source: &str,
+    file: Option<Georef>,
+    spacing: (f64, f64),
+    opts: &LoadOptions,
+) -> Result<Option<Georef>, DemError> {
+    let bad = |detail: String| DemError::BadOptions {
+        input: source.into(),
+        detail,
+    };
+    let g = match (file, opts.origin) {
+        (Some(g), None) => g,
+        (Some(g), Some(_)) => {
+            return Err(bad(format!(
+                "--origin places input without a georeference, and this file has one ({})",
+                g.crs()
+            )));
+        }
+        (None, Some(origin)) => Georef::around(origin, spacing).map_err(|e| bad(e.to_string()))?,
+        (None, None) => return Ok(None),
+    };
+    GeoTransform::new(&g).map_err(|e| bad(e.to_string()))?;
+    Ok(Some(g))
 }
 
 /// The ground spacing: the caller's overrides, else the file's, checked to be positive.

@@ -65,6 +65,7 @@ pub fn read<R: BufRead + Seek>(
         voids,
         spacing: Err("a PNG carries no ground spacing".into()),
         crs: None,
+        georef: None,
         nan_is_void: false,
     })
 }

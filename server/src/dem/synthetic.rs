@@ -78,6 +78,7 @@ pub fn load(spec: &str, rest: &str, opts: &LoadOptions) -> Result<Dem, DemError>
         heights,
         spacing: Ok((SPACING_M, SPACING_M)),
         crs: None,
+        georef: None,
         nan_is_void: false,
     };
     super::finish(spec, raw, opts)

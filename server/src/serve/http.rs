@@ -128,6 +128,7 @@ pub async fn terrain(State(state): State<Arc<AppState>>) -> Result<Response, Api
                      i.height.saturating_sub(1) as f32 * i.spacing_y],
         "source": meta.source,
         "crs": meta.crs,
+        "bounds_lonlat": meta.bounds.map(|b| b.to_array()),
         "void_count": meta.void_count,
         "protocol_version": PROTOCOL_VERSION,
     }))

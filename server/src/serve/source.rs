@@ -63,6 +63,9 @@ pub fn cache_key(spec: &str, opts: &LoadOptions) -> u64 {
         v.to_bits().hash(&mut h);
     }
     opts.png.nodata_value.hash(&mut h);
+    opts.origin
+        .map(|(x, y)| (x.to_bits(), y.to_bits()))
+        .hash(&mut h);
     crate::store::format::VERSION.hash(&mut h);
     if let Ok(m) = std::fs::metadata(spec) {
         m.len().hash(&mut h);

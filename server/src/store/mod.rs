@@ -17,6 +17,7 @@ mod mmap;
 pub mod private;
 pub mod tiles;
 
+use crate::geo::{Georef, LonLatBounds};
 use format::{HEADER_LEN, Header, META, NODES, TILE_DATA, TILES, VOIDS};
 use layout::{QuadLayout, rec_code, rec_z};
 use memmap2::Mmap;
@@ -94,6 +95,13 @@ pub struct StoreMeta {
     /// hold), `rqt` or `tin`.
     #[serde(default = "grid_name")]
     pub tile_mesh: String,
+    /// Where the samples lie on the Earth, when the DEM says (GeoTIFF tags, `--origin`):
+    /// what the standard formats resample through. Stores without it serve none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub georef: Option<Georef>,
+    /// The samples' longitude/latitude box (WGS 84), from the georeference.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounds: Option<LonLatBounds>,
 }
 
 fn grid_name() -> String {
@@ -111,6 +119,8 @@ impl Default for StoreMeta {
             void_count: 0,
             cache_key: None,
             tile_mesh: grid_name(),
+            georef: None,
+            bounds: None,
         }
     }
 }

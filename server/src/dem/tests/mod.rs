@@ -275,3 +275,38 @@ fn spacing_overrides_and_their_checks() {
         assert!(matches!(e, DemError::Spacing { .. }), "{e}");
     }
 }
+
+/// `--origin` places a synthetic terrain on WGS 84 degrees at its ground spacing, and a
+/// georeferenced GeoTIFF refuses it.
+#[test]
+fn origin_places_input_without_a_georeference() {
+    let opts = LoadOptions {
+        origin: Some((8.5, 47.4)),
+        ..LoadOptions::default()
+    };
+    let d = load("synthetic:65", &opts).unwrap();
+    let g = d.georef.expect("a georeference");
+    assert_eq!((g.epsg, g.first), (4326, [8.5, 47.4]));
+    let (mx, _) = crate::geo::ellipsoid::metres_per_degree(47.4);
+    assert!((g.step[0] * mx - d.spacing_x).abs() < 1e-9);
+    assert_eq!(d.crs.as_deref(), Some("EPSG:4326"));
+    assert!(
+        load("synthetic:65", &LoadOptions::default())
+            .unwrap()
+            .georef
+            .is_none()
+    );
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/fuji_crop.tif");
+    let e = load(path, &opts).unwrap_err().to_string();
+    assert!(e.contains("--origin") && e.contains("EPSG:4326"), "{e}");
+    let off = LoadOptions {
+        origin: Some((0.0, 89.0)),
+        ..LoadOptions::default()
+    };
+    assert!(
+        load("synthetic:65", &off)
+            .unwrap_err()
+            .to_string()
+            .contains("latitude")
+    );
+}

@@ -4,6 +4,7 @@
 
 use super::{load_sidecar, shared};
 use crate::dem::{Dem, LoadOptions, PngOptions, embedded_default, load};
+use crate::geo::GeoTransform;
 
 fn close(a: f64, b: f64, rel: f64) -> bool {
     (a - b).abs() <= rel * b.abs()
@@ -58,6 +59,45 @@ fn shared_dem_geotiffs_match_their_sidecars() {
             "{name}"
         );
         assert_eq!(d.crs.as_deref(), Some(crs), "{name}");
+        // The georeference puts the samples where the sidecar's pixel-area bounds say: the
+        // first sample half a pixel in from the north-west corner.
+        let g = d.georef.clone().expect("a georeference");
+        let t = GeoTransform::new(&g).unwrap();
+        let (key, half) = if g.epsg == 4326 {
+            ("bounds_lonlat", car["pixel_deg"].as_f64().unwrap() / 2.0)
+        } else {
+            ("bounds_xy", s[0].as_f64().unwrap() / 2.0)
+        };
+        let b: Vec<f64> = car[key]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        let [x0, y0] = g.model(0.0, 0.0);
+        assert!(
+            (x0 - (b[0] + half)).abs() < 1e-5 * half.max(1.0),
+            "{name}: {x0}"
+        );
+        assert!(
+            (y0 - (b[3] - half)).abs() < 1e-5 * half.max(1.0),
+            "{name}: {y0}"
+        );
+        let [x1, y1] = g.model((d.width - 1) as f64, (d.height - 1) as f64);
+        assert!(
+            (x1 - (b[2] - half)).abs() < 1e-3 * half.max(1.0),
+            "{name}: {x1}"
+        );
+        assert!(
+            (y1 - (b[1] + half)).abs() < 1e-3 * half.max(1.0),
+            "{name}: {y1}"
+        );
+        let ll = t.bounds(d.width, d.height).unwrap();
+        if name == "bigtujunga_30m" {
+            // UTM 11N east of Los Angeles: the San Gabriel Mountains.
+            assert!(ll.west > -118.4 && ll.east < -117.9, "{ll:?}");
+            assert!(ll.south > 34.2 && ll.north < 34.45, "{ll:?}");
+        }
         // Sample for sample the same as the PNG conversion, voids included.
         if let Some(p) = png_twin(name, &car) {
             assert_eq!(p.voids, d.voids, "{name}");
@@ -149,6 +189,11 @@ fn embedded_default_is_the_committed_crop() {
     assert!((d.spacing_x - 75.69).abs() < 0.05, "{}", d.spacing_x);
     assert!((d.spacing_y - 92.46).abs() < 0.05, "{}", d.spacing_y);
     assert_eq!(d.crs.as_deref(), Some("EPSG:4326"));
+    // Column 700, row 628 of the original, whose first sample lies at 138 E, 36 N.
+    let g = d.georef.clone().expect("the crop's georeference");
+    let [lon, lat] = g.model(0.0, 0.0);
+    assert!((lon - (138.0 + 700.0 / 1200.0)).abs() < 1e-9, "{lon}");
+    assert!((lat - (36.0 - 628.0 / 1200.0)).abs() < 1e-9, "{lat}");
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/data/fuji_crop.tif");
     let f = load(path, &LoadOptions::default()).unwrap();
     assert_eq!(f.heights, d.heights);
