@@ -3,6 +3,8 @@
 //! - [`georef`]: [`Georef`], how a DEM's sample grid sits in its CRS, and [`GeoTransform`],
 //!   which converts between sample positions and longitude/latitude (projected CRSs through
 //!   `proj4rs`, a maintained pure-Rust port of PROJ.4 with the EPSG definitions built in).
+//! - [`tiling`]: the global tile schemes of the standard formats: Cesium's geographic one and
+//!   Web Mercator XYZ.
 //! - [`ellipsoid`]: WGS 84 constants, metres per degree, geodetic to Earth-centred coordinates.
 //!
 //! The standard formats (`crate::formats`) resample the store onto their tile schemes through
@@ -10,5 +12,6 @@
 
 pub mod ellipsoid;
 pub mod georef;
+pub mod tiling;
 
 pub use georef::{GeoError, GeoTransform, Georef, LonLatBounds};
