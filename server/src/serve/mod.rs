@@ -7,6 +7,8 @@
 //! - [`router`]: [`router::app`], every route (testable without a socket).
 //! - [`http`]: the HTTP endpoints and their error type.
 //! - [`tiles`]: the tile pyramid over HTTP (`/v1/tiles.json`, `/v1/tiles/{z}/{x}/{y}`).
+//! - [`formats`]: the standard formats over HTTP (`/cesium` quantized-mesh, `/tiles`
+//!   terrain-RGB and Terrarium PNGs with TileJSON).
 //! - [`ws`]: the WebSocket upgrade and session admission.
 //! - [`session`]: one session's protocol (hello, welcome, flow, closes), generic over
 //!   `Sink + Stream`.
@@ -17,6 +19,7 @@
 //! - [`listen`]: the accept loop with the header timeout, and the drain.
 
 pub mod config;
+pub mod formats;
 pub mod http;
 pub mod limits;
 pub mod listen;

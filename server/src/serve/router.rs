@@ -4,12 +4,14 @@
 use super::http::ApiError;
 use super::limits::Refusal;
 use super::state::AppState;
-use super::{http, tiles, ws};
+use super::{formats, http, tiles, ws};
+use axum::http::{Method, header};
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
 use axum::routing::{get, post};
 use std::sync::Arc;
 use tower_http::compression::CompressionLayer;
+use tower_http::cors::{Any, CorsLayer};
 
 /// The router: every route of the server over `state`.
 pub fn app(state: Arc<AppState>) -> Router {
@@ -18,6 +20,20 @@ pub fn app(state: Arc<AppState>) -> Router {
         .route("/v1/tiles.json", get(tiles::tileset))
         .route("/v1/tiles/{z}/{x}/{y}", get(tiles::tile))
         .layer(CompressionLayer::new().gzip(true));
+    // The standard formats: gzip for the meshes and JSON (PNGs are compressed already, and the
+    // layer's default predicate skips images), and CORS for pages on other origins.
+    let format_routes = Router::new()
+        .route("/cesium/layer.json", get(formats::cesium_layer))
+        .route("/cesium/{z}/{x}/{y}", get(formats::cesium_tile))
+        .route("/tiles/{file}", get(formats::tilejson))
+        .route("/tiles/{encoding}/{z}/{x}/{y}", get(formats::raster_tile))
+        .layer(CompressionLayer::new().gzip(true))
+        .layer(
+            CorsLayer::new()
+                .allow_origin(Any)
+                .allow_methods([Method::GET])
+                .expose_headers([header::ETAG]),
+        );
     Router::new()
         .route("/v1/stream", get(ws::upgrade))
         .route("/v1/terrain", get(http::terrain))
@@ -28,6 +44,7 @@ pub fn app(state: Arc<AppState>) -> Router {
         .route("/healthz", get(http::healthz))
         .route("/readyz", get(http::readyz))
         .merge(tile_routes)
+        .merge(format_routes)
         .fallback(http::not_found)
         .layer(DefaultBodyLimit::max(
             state.limits.max_message_bytes as usize,

@@ -3,6 +3,9 @@
 use super::config::Limits;
 use super::limits::{IpBuckets, SlotLimits};
 use super::metrics::Metrics;
+use crate::formats::cesium::CesiumLayer;
+use crate::formats::raster::{RasterLayer, TILE_SIZES};
+use crate::geo::GeoTransform;
 use crate::store::Store;
 use relief_proto::msg::TerrainInfo;
 use serde::Serialize;
@@ -19,6 +22,41 @@ pub struct Terrain {
     pub store: Store,
     /// The metadata sent in welcomes and by `GET /v1/terrain`.
     pub info: TerrainInfo,
+    /// The standard formats' view of the terrain, or why there is none (no georeference, or a
+    /// CRS Relief cannot convert): `/cesium` and `/tiles` answer 404 with the reason.
+    pub formats: Result<Formats, String>,
+}
+
+/// What the standard formats need of a georeferenced terrain, built once when it is loaded.
+#[derive(Debug)]
+pub struct Formats {
+    /// Sample positions to and from longitude/latitude.
+    pub geo: GeoTransform,
+    /// The Cesium tiles that exist.
+    pub cesium: CesiumLayer,
+    /// The Web Mercator PNG tiles that exist, at 256 and 512 pixels.
+    pub raster: [RasterLayer; 2],
+}
+
+impl Formats {
+    fn new(store: &Store) -> Result<Formats, String> {
+        let g = store.meta().georef.as_ref().ok_or_else(|| {
+            "the terrain has no georeference (a PNG or synthetic DEM built without --origin \
+             LON,LAT), so it has no place on the globe to serve standard tiles for"
+                .to_string()
+        })?;
+        let geo = GeoTransform::new(g).map_err(|e| e.to_string())?;
+        let shape = &store.geometry().shape;
+        let cesium =
+            CesiumLayer::new(&geo, shape.width(), shape.height()).map_err(|e| e.to_string())?;
+        let [a, b] = TILE_SIZES.map(|s| RasterLayer::new(&geo, shape.width(), shape.height(), s));
+        let raster = [a.map_err(|e| e.to_string())?, b.map_err(|e| e.to_string())?];
+        Ok(Formats {
+            geo,
+            cesium,
+            raster,
+        })
+    }
 }
 
 impl Terrain {
@@ -38,7 +76,12 @@ impl Terrain {
                 store.meta().height_max as f32,
             ],
         };
-        Terrain { store, info }
+        let formats = Formats::new(&store);
+        Terrain {
+            store,
+            info,
+            formats,
+        }
     }
 }
 
