@@ -7,6 +7,7 @@
 //! - [`bench`]: in-process benchmarks.
 //! - [`cli`]: the `relief-server` command line.
 //! - [`serve`]: the streaming server: WebSocket sessions, HTTP API, limits, metrics, drain.
+//! - [`formats`]: standard terrain tile formats (Cesium quantized-mesh).
 /// jemalloc instead of the system allocator, for every program that links the server (the
 /// `relief-server` binary, the tests' child server): under session churn glibc malloc keeps the
 /// memory sessions free (a 2-minute soak of 500 cycling sessions: RSS +8 % while live data was
@@ -19,6 +20,7 @@ static GLOBAL: tikv_jemallocator::Jemalloc = tikv_jemallocator::Jemalloc;
 pub mod bench;
 pub mod cli;
 pub mod dem;
+pub mod formats;
 pub mod lod;
 pub mod preprocess;
 pub mod serve;
