@@ -13,6 +13,7 @@
 //!   to the level whose 65-point tiles are as fine as the store's samples ([`CesiumLayer`]).
 //!   Other tiles are not available: the server answers 404, and Cesium upsamples parents.
 
+use super::quantized_mesh::availability_metadata;
 use super::sampler::{Points, Resampler};
 use crate::geo::tiling::{Scheme, TileRange, TileXyz, cesium_level_error};
 use crate::geo::{GeoError, GeoTransform, LonLatBounds};
@@ -115,7 +116,7 @@ impl CesiumLayer {
             let any = cut.start_x <= cut.end_x && cut.start_y <= cut.end_y;
             levels.push(if any { vec![cut] } else { Vec::new() });
         }
-        serde_json::json!({ "available": levels }).to_string()
+        availability_metadata(&levels)
     }
 }
 
