@@ -1,6 +1,7 @@
 //! `relief-server`: preprocessing, LOD engines and benchmarks of the Relief terrain server.
 //!
 //! - [`dem`]: DEM readers (GeoTIFF, PNG, synthetic) and void filling.
+//! - [`formats`]: standard terrain formats: terrain-RGB and Terrarium PNG tiles, SRTM `.hgt`.
 //! - [`geo`]: the georeference (CRS, lon/lat conversion, proj4rs) and the WGS 84 ellipsoid.
 //! - [`store`]: the preprocessed vertex-quadtree store: build, file format, memory-mapped reader.
 //! - [`preprocess`]: a DEM in, a store out.
@@ -20,6 +21,7 @@ static GLOBAL: tikv_jemallocator::Jemalloc = tikv_jemallocator::Jemalloc;
 pub mod bench;
 pub mod cli;
 pub mod dem;
+pub mod formats;
 pub mod geo;
 pub mod lod;
 pub mod preprocess;

@@ -4,11 +4,13 @@
 //!   which converts between sample positions and longitude/latitude (projected CRSs through
 //!   `proj4rs`, a maintained pure-Rust port of PROJ.4 with the EPSG definitions built in).
 //! - [`ellipsoid`]: WGS 84 constants, metres per degree, geodetic to Earth-centred coordinates.
+//! - [`mercator`]: Web Mercator (EPSG:3857) and its XYZ tiles, the scheme of web map tiles.
 //!
 //! The standard formats (`crate::formats`) resample the store onto their tile schemes through
 //! these.
 
 pub mod ellipsoid;
 pub mod georef;
+pub mod mercator;
 
 pub use georef::{GeoError, GeoTransform, Georef, LonLatBounds};
