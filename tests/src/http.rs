@@ -66,4 +66,3 @@ fn dechunk(mut b: &[u8]) -> Vec<u8> {
 pub fn header<'a>(hs: &'a [(String, String)], name: &str) -> Option<&'a str> {
     hs.iter().find(|(k, _)| k == name).map(|(_, v)| v.as_str())
 }
-

@@ -16,7 +16,9 @@ use std::io::Read;
 
 fn gunzip(b: &[u8]) -> Vec<u8> {
     let mut out = Vec::new();
-    flate2::read::GzDecoder::new(b).read_to_end(&mut out).unwrap();
+    flate2::read::GzDecoder::new(b)
+        .read_to_end(&mut out)
+        .unwrap();
     out
 }
 
@@ -24,7 +26,10 @@ fn gunzip(b: &[u8]) -> Vec<u8> {
 async fn cesium_layer_and_tiles_decode_to_the_meant_mesh() {
     let server = TestServer::start(Limits::default()).await;
     let t = server.state.terrain().unwrap();
-    let f = t.formats.as_ref().expect("the embedded crop is georeferenced");
+    let f = t
+        .formats
+        .as_ref()
+        .expect("the embedded crop is georeferenced");
 
     let (status, hs, body) = get(&server, "/cesium/layer.json", &[]).await;
     assert_eq!(status, 200);
@@ -34,7 +39,10 @@ async fn cesium_layer_and_tiles_decode_to_the_meant_mesh() {
     assert_eq!(layer["scheme"], "tms");
     let max = layer["maxzoom"].as_u64().unwrap() as u8;
     assert_eq!(max, f.cesium.max_level);
-    assert_eq!(layer["available"].as_array().unwrap().len(), max as usize + 1);
+    assert_eq!(
+        layer["available"].as_array().unwrap().len(),
+        max as usize + 1
+    );
     // 3" samples in 65-point tiles: level 12 is as fine as the store.
     assert_eq!(max, 12);
 
@@ -78,17 +86,27 @@ async fn cesium_layer_and_tiles_decode_to_the_meant_mesh() {
         sorted_got.sort_by_key(key);
         sorted_want.sort_by_key(key);
         for (g, w) in sorted_got.iter().zip(&sorted_want) {
-            assert!((g[0] - w[0]).abs() <= dx && (g[1] - w[1]).abs() <= dy, "{url}");
+            assert!(
+                (g[0] - w[0]).abs() <= dx && (g[1] - w[1]).abs() <= dy,
+                "{url}"
+            );
             assert!((g[2] - w[2]).abs() <= dz.max(1e-3), "{url}: {g:?} {w:?}");
         }
         if z == max {
-            assert_eq!(got.u.len(), TILE_POINTS * TILE_POINTS, "grid keeps every point");
+            assert_eq!(
+                got.u.len(),
+                TILE_POINTS * TILE_POINTS,
+                "grid keeps every point"
+            );
         }
         // Revalidation, and the bare tile without extensions for a plain Accept.
         let (s304, _, _) = get(&server, &url, &[accept, &format!("If-None-Match: {etag}")]).await;
         assert_eq!(s304, 304);
         let (_, hs, plain) = get(&server, &url, &[]).await;
-        assert_eq!(header(&hs, "content-type"), Some("application/vnd.quantized-mesh"));
+        assert_eq!(
+            header(&hs, "content-type"),
+            Some("application/vnd.quantized-mesh")
+        );
         let bare = decode(&plain).unwrap();
         assert!(bare.normals.is_none() && bare.metadata.is_none());
         assert_ne!(header(&hs, "etag").unwrap(), etag);
@@ -132,7 +150,11 @@ async fn png_tiles_carry_relief_heights_within_half_a_step() {
             let (status, hs, png) = get(&server, &path, &["Accept-Encoding: gzip"]).await;
             assert_eq!(status, 200, "{path}");
             assert_eq!(header(&hs, "content-type"), Some("image/png"));
-            assert_eq!(header(&hs, "content-encoding"), None, "PNGs are not gzipped again");
+            assert_eq!(
+                header(&hs, "content-encoding"),
+                None,
+                "PNGs are not gzipped again"
+            );
             let (w, h, z) = decode_png(&png, enc).unwrap();
             assert_eq!((w, h), (size, size));
             let want = Resampler::new(&t.store, &f.geo)
@@ -142,10 +164,7 @@ async fn png_tiles_carry_relief_heights_within_half_a_step() {
             let mut inside = 0;
             for (g, w) in z.iter().zip(&want) {
                 let w = w.unwrap_or(0.0);
-                assert!(
-                    f64::from((g - w).abs()) <= half,
-                    "{path}: {g} vs {w}"
-                );
+                assert!(f64::from((g - w).abs()) <= half, "{path}: {g} vs {w}");
                 inside += usize::from(w != 0.0);
             }
             assert!(inside > 0, "{path} holds no terrain");

@@ -211,15 +211,26 @@ mod tests {
         assert!(l.available(TileXyz { z: 0, x: 1, y: 0 }));
         assert!(!l.available(TileXyz { z: 13, x: 0, y: 0 }));
         let r8 = l.ranges[8];
-        assert_eq!((r8.start_x, r8.end_x, r8.start_y, r8.end_y), (452, 453, 177, 179));
-        assert!(!l.available(TileXyz { z: 8, x: 451, y: 178 }));
+        assert_eq!(
+            (r8.start_x, r8.end_x, r8.start_y, r8.end_y),
+            (452, 453, 177, 179)
+        );
+        assert!(!l.available(TileXyz {
+            z: 8,
+            x: 451,
+            y: 178
+        }));
         let j = l.layer_json(MeshKind::Grid, 7);
         assert_eq!(j["available"].as_array().unwrap().len(), 13);
         assert_eq!(j["available"][8][0]["startX"], 452);
         assert_eq!(j["scheme"], "tms");
         // Metadata lists the next levels' tiles under a tile, cut to the layer.
-        let m: serde_json::Value =
-            serde_json::from_str(&l.metadata(TileXyz { z: 8, x: 452, y: 178 })).unwrap();
+        let m: serde_json::Value = serde_json::from_str(&l.metadata(TileXyz {
+            z: 8,
+            x: 452,
+            y: 178,
+        }))
+        .unwrap();
         let a = m["available"].as_array().unwrap();
         assert_eq!(a.len(), 4);
         assert_eq!(a[0][0]["startX"], 904);

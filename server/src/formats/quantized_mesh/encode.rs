@@ -1,9 +1,7 @@
 //! [`encode`]: a [`QmMesh`] to quantized-mesh bytes, and the two integer codes of the format
 //! ([`zigzag_encode`], [`hwm_encode`]).
 
-use super::ellipsoid::{
-    bounding_sphere, geodetic_normal, to_ecef, horizon_occlusion_point,
-};
+use super::ellipsoid::{bounding_sphere, geodetic_normal, horizon_occlusion_point, to_ecef};
 use super::normals::{oct_encode, vertex_normals};
 use super::{
     EXT_METADATA, EXT_OCT_NORMALS, MAX_VERTICES_16, QUANT_MAX, QmError, QmExtensions, QmMesh,
@@ -326,10 +324,7 @@ pub fn encode(mesh: &QmMesh, ext: &QmExtensions) -> Result<Vec<u8>, QmError> {
     }
 
     if ext.normals {
-        let ecef: Vec<[f64; 3]> = vertices
-            .iter()
-            .map(|v| to_ecef(v[0], v[1], v[2]))
-            .collect();
+        let ecef: Vec<[f64; 3]> = vertices.iter().map(|v| to_ecef(v[0], v[1], v[2])).collect();
         let normals = vertex_normals(&ecef, &triangles, |i| {
             geodetic_normal(vertices[i][0], vertices[i][1])
         });

@@ -80,7 +80,6 @@ pub fn extensions_from_accept(accept: &str) -> RequestedExtensions {
     out
 }
 
-
 #[derive(Serialize)]
 struct Availability<'a> {
     available: &'a [Vec<TileRange>],

@@ -29,9 +29,9 @@ pub mod normals;
 #[cfg(test)]
 mod tests;
 
+pub use crate::geo::tiling::TileRange;
 pub use decode::{QmHeader, QmTile, decode, hwm_decode, zigzag_decode};
 pub use encode::{encode, hwm_encode, vertex_order, zigzag_encode};
-pub use crate::geo::tiling::TileRange;
 pub use extensions::{RequestedExtensions, availability_metadata, extensions_from_accept};
 
 /// The largest quantized u, v or height (the east and north edges, the maximum height).

@@ -112,3 +112,46 @@ fn connection_limits_follow_the_session_limits_unless_set() {
     assert_eq!(c.limits.max_connections_per_ip, 7);
     assert_eq!(c.limits.max_connections, Limits::default().max_connections);
 }
+
+#[test]
+fn a_dem_is_one_spec_or_a_mosaic_from_flags_or_the_file() {
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "dem = [\"N35E138.hgt\", \"N35E139.hgt\"]").unwrap();
+    let file = Some(f.path().to_path_buf());
+    let args = ServeArgs {
+        config: file.clone(),
+        ..ServeArgs::default()
+    };
+    let TerrainSource::Dem(specs, _) = args.resolve().unwrap().source else {
+        panic!("not a DEM")
+    };
+    assert_eq!(specs, ["N35E138.hgt", "N35E139.hgt"]);
+    // Flags beat the file.
+    let args = ServeArgs {
+        config: file,
+        dem: vec!["synthetic:65".into()],
+        ..ServeArgs::default()
+    };
+    let TerrainSource::Dem(specs, _) = args.resolve().unwrap().source else {
+        panic!("not a DEM")
+    };
+    assert_eq!(specs, ["synthetic:65"]);
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "dem = \"x.tif\"").unwrap();
+    let args = ServeArgs {
+        config: Some(f.path().to_path_buf()),
+        ..ServeArgs::default()
+    };
+    let TerrainSource::Dem(specs, _) = args.resolve().unwrap().source else {
+        panic!("not a DEM")
+    };
+    assert_eq!(specs, ["x.tif"]);
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "dem = []").unwrap();
+    let args = ServeArgs {
+        config: Some(f.path().to_path_buf()),
+        ..ServeArgs::default()
+    };
+    let e = args.resolve().unwrap_err().to_string();
+    assert!(e.contains("empty list"), "{e}");
+}

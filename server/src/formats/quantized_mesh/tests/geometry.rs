@@ -3,7 +3,7 @@
 
 use super::*;
 
-fn to_ecef(p: [f64; 3]) -> [f64; 3] {
+fn ecef(p: [f64; 3]) -> [f64; 3] {
     to_ecef(p[0], p[1], p[2])
 }
 
@@ -33,11 +33,7 @@ fn header_sphere_and_centre_hold_every_vertex() {
         assert!(norm(sub(h.center, center)) < 1e-6);
         let r = h.sphere_radius;
         assert!(norm(sub(h.center, h.sphere_center)) <= r);
-        let decoded: Vec<[f64; 3]> = tile
-            .positions(w, s, e, n)
-            .into_iter()
-            .map(to_ecef)
-            .collect();
+        let decoded: Vec<[f64; 3]> = tile.positions(w, s, e, n).into_iter().map(ecef).collect();
         let mut diameter: f64 = 0.0;
         for &p in &decoded {
             assert!(norm(sub(p, h.sphere_center)) <= r * (1.0 + 1e-12));
@@ -51,7 +47,7 @@ fn header_sphere_and_centre_hold_every_vertex() {
         );
         // The original vertices too, give or take their quantization error.
         for (i, &v) in vertex_order(mesh).unwrap().iter().enumerate() {
-            let p = to_ecef(mesh.vertices[v as usize]);
+            let p = ecef(mesh.vertices[v as usize]);
             assert!(norm(sub(p, h.sphere_center)) <= r + norm(sub(p, decoded[i])) + 1e-6);
         }
     }
@@ -95,7 +91,7 @@ fn check_horizon_point(mesh: &QmMesh, seed: u64) {
     let vertices: Vec<[f64; 3]> = tile
         .positions(w, s, e, n)
         .into_iter()
-        .map(|p| scale(to_ecef(p)))
+        .map(|p| scale(ecef(p)))
         .collect();
     // Not absurdly far out: within the magnitude a cap of the tile's angular size needs.
     let cap = (e - w).max(n - s).to_radians();

@@ -11,8 +11,7 @@ mod round_trip;
 
 use super::decode::{hwm_decode, zigzag_decode};
 use super::ellipsoid::{
-    WGS84_A, WGS84_B, bounding_sphere, dot, geodetic_normal, to_ecef, norm,
-    occluder_radii, sub,
+    WGS84_A, WGS84_B, bounding_sphere, dot, geodetic_normal, norm, occluder_radii, sub, to_ecef,
 };
 use super::normals::{oct_decode, oct_encode, vertex_normals};
 use super::*;
