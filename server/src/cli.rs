@@ -158,6 +158,28 @@ enum BenchCommand {
         #[arg(long)]
         plot: Option<PathBuf>,
     },
+    /// Make the standard formats' tiles over a whole terrain, as `serve` makes them on request
+    /// (Cesium quantized-mesh with grid, rqt and tin meshes, with normals and metadata;
+    /// terrain-RGB and Terrarium PNGs), and report bytes (raw and gzipped, mean and p99),
+    /// triangles and the time to make each tile (median and p99, one thread).
+    Formats {
+        /// The DEM (same forms as `build`'s inputs); it needs a georeference (GeoTIFF tags,
+        /// or --origin).
+        #[arg(long, required = true, num_args = 1..)]
+        dem: Vec<String>,
+        /// Most tiles per level (beyond it, an even sample of the level's tiles, the same for
+        /// every mesh kind).
+        #[arg(long, default_value_t = 64)]
+        max_per_level: usize,
+        /// PNG tile size in pixels: 256 or 512.
+        #[arg(long, default_value_t = 256, value_parser = png_tile_size)]
+        tile_size: u32,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        dem_args: DemArgs,
+    },
 }
 
 /// A tile mesh kind on the command line.
@@ -239,6 +261,42 @@ impl From<Crack> for relief_proto::msg::CrackMode {
 }
 
 /// Prints a benchmark report: one JSON line with `json`, else a two-column table.
+/// `--tile-size` of `bench formats`: 256 or 512.
+fn png_tile_size(s: &str) -> Result<u32, String> {
+    match s.parse::<u32>() {
+        Ok(n) if crate::formats::raster::TILE_SIZES.contains(&n) => Ok(n),
+        _ => Err(format!("{s:?} is not a served tile size: use 256 or 512")),
+    }
+}
+
+/// The formats report as a Markdown table.
+fn print_formats(r: &crate::bench::formats::FormatsReport) {
+    let b = r.bounds;
+    println!(
+        "bounds {:.4},{:.4},{:.4},{:.4}; Cesium levels 0-{}, Web Mercator levels 0-{}\n",
+        b[0], b[1], b[2], b[3], r.cesium_max_level, r.raster_max_level
+    );
+    println!(
+        "| tiles | count | triangles | bytes mean | bytes p99 | gzip mean | gzip p99 | make ms median | make ms p99 | worst error / tolerance |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for k in &r.kinds {
+        println!(
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.0} | {:.2} | {:.2} | {:.3} |",
+            k.kind,
+            k.tiles,
+            k.triangles_mean,
+            k.bytes_mean,
+            k.bytes_p99,
+            k.gzip_mean,
+            k.gzip_p99,
+            k.make_ms_median,
+            k.make_ms_p99,
+            k.worst_error_of_tolerance
+        );
+    }
+}
+
 fn print_report(report: &impl serde::Serialize, json: bool) -> anyhow::Result<()> {
     let v = serde_json::to_value(report)?;
     if json {
@@ -344,6 +402,33 @@ fn run() -> anyhow::Result<()> {
                 out["fractal"] = serde_json::to_value(report)?;
             }
             println!("{}", serde_json::to_string_pretty(&out)?);
+        }
+        Command::Bench {
+            which:
+                BenchCommand::Formats {
+                    dem,
+                    max_per_level,
+                    tile_size,
+                    json,
+                    dem_args,
+                },
+        } => {
+            let d = dem_args.load(&dem).context("cannot load the DEM")?;
+            let dir = tempfile::tempdir()?;
+            let path = dir.path().join("bench.relief");
+            crate::preprocess::build_store(&d, &path, &Default::default())?;
+            let store = crate::store::Store::open(&path)?;
+            let opts = crate::bench::formats::FormatsBenchOptions {
+                max_per_level: max_per_level.max(1),
+                tile_size,
+                progress: !dem_args.quiet,
+            };
+            let report = crate::bench::formats::run(&store, &opts)?;
+            if json {
+                println!("{}", serde_json::to_string(&report)?);
+            } else {
+                print_formats(&report);
+            }
         }
         Command::Bench {
             which: BenchCommand::Lod { run },

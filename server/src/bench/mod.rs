@@ -4,9 +4,11 @@
 //! - [`lod`]: the vertex stream over the standard or stress path.
 //! - [`tiles`]: the tile stream over the same paths, with patches, skirts or nothing.
 //! - [`compare`]: every stream at the same measured error.
+//! - [`formats`]: the standard formats' tiles over a whole terrain: bytes and making time.
 //! - [`stats`]: medians and quantiles.
 pub mod compare;
 pub mod flight;
+pub mod formats;
 pub mod lod;
 pub mod stats;
 pub mod tiles;

@@ -137,21 +137,31 @@ pub fn tolerance(z: u8) -> f32 {
     (cesium_level_error(z) / 2.0) as f32
 }
 
+/// The heights of tile `t` at its 65 x 65 points, row by row from the north (0 m outside the
+/// store).
+pub fn tile_heights(r: &Resampler<'_>, t: TileXyz) -> Result<Vec<f32>, GeoError> {
+    Ok(r.tile(Scheme::Geographic, t, TILE_POINTS, Points::Edges)?
+        .into_iter()
+        .map(|h| h.unwrap_or(0.0))
+        .collect())
+}
+
+/// The `kind` mesh of a tile's 65 x 65 heights at level `z`.
+pub fn mesh_heights(grid: &HeightGrid<'_>, kind: MeshKind, z: u8) -> TriMesh {
+    match kind {
+        MeshKind::Grid => grid_mesh(grid.width as u32),
+        // 65 is 2^6 + 1, the side a restricted quadtree needs.
+        MeshKind::Rqt => rqt(grid, tolerance(z)).expect("65 x 65 is an rqt side"),
+        MeshKind::Tin => tin(grid, tolerance(z), &[]),
+    }
+}
+
 /// Tile `t` resampled from the store and meshed by `kind`.
 pub fn tile_mesh(r: &Resampler<'_>, kind: MeshKind, t: TileXyz) -> Result<GeoMesh, GeoError> {
     let n = TILE_POINTS;
-    let z: Vec<f32> = r
-        .tile(Scheme::Geographic, t, n, Points::Edges)?
-        .into_iter()
-        .map(|h| h.unwrap_or(0.0))
-        .collect();
+    let z = tile_heights(r, t)?;
     let grid = HeightGrid::new(n, n, &z).expect("a 65 x 65 grid");
-    let mesh = match kind {
-        MeshKind::Grid => grid_mesh(n as u32),
-        // 65 is 2^6 + 1, the side a restricted quadtree needs.
-        MeshKind::Rqt => rqt(&grid, tolerance(t.z)).expect("65 x 65 is an rqt side"),
-        MeshKind::Tin => tin(&grid, tolerance(t.z), &[]),
-    };
+    let mesh = mesh_heights(&grid, kind, t.z);
     let step = 1.0 / (n - 1) as f64;
     let vertices = mesh
         .vertices
