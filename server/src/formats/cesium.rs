@@ -139,11 +139,11 @@ pub fn tolerance(z: u8) -> f32 {
 
 /// The heights of tile `t` at its 65 x 65 points, row by row from the north (0 m outside the
 /// store).
-pub fn tile_heights(r: &Resampler<'_>, t: TileXyz) -> Result<Vec<f32>, GeoError> {
-    Ok(r.tile(Scheme::Geographic, t, TILE_POINTS, Points::Edges)?
+pub fn tile_heights(r: &Resampler<'_>, t: TileXyz) -> Vec<f32> {
+    r.tile(Scheme::Geographic, t, TILE_POINTS, Points::Edges)
         .into_iter()
         .map(|h| h.unwrap_or(0.0))
-        .collect())
+        .collect()
 }
 
 /// The `kind` mesh of a tile's 65 x 65 heights at level `z`.
@@ -157,9 +157,9 @@ pub fn mesh_heights(grid: &HeightGrid<'_>, kind: MeshKind, z: u8) -> TriMesh {
 }
 
 /// Tile `t` resampled from the store and meshed by `kind`.
-pub fn tile_mesh(r: &Resampler<'_>, kind: MeshKind, t: TileXyz) -> Result<GeoMesh, GeoError> {
+pub fn tile_mesh(r: &Resampler<'_>, kind: MeshKind, t: TileXyz) -> GeoMesh {
     let n = TILE_POINTS;
-    let z = tile_heights(r, t)?;
+    let z = tile_heights(r, t);
     let grid = HeightGrid::new(n, n, &z).expect("a 65 x 65 grid");
     let mesh = mesh_heights(&grid, kind, t.z);
     let step = 1.0 / (n - 1) as f64;
@@ -171,11 +171,11 @@ pub fn tile_mesh(r: &Resampler<'_>, kind: MeshKind, t: TileXyz) -> Result<GeoMes
             [lon, lat, f64::from(grid.at(c, row))]
         })
         .collect();
-    Ok(GeoMesh {
+    GeoMesh {
         bounds: Scheme::Geographic.bounds(t),
         vertices,
         triangles: mesh.triangles,
-    })
+    }
 }
 
 /// Every point of an `n` x `n` grid, two triangles a cell, counter-clockwise seen from above

@@ -69,16 +69,11 @@ impl RasterLayer {
 }
 
 /// Tile `t` of `size` pixels resampled from the store and encoded as a PNG.
-pub fn tile_png(
-    r: &Resampler<'_>,
-    encoding: Encoding,
-    t: TileXyz,
-    size: u32,
-) -> Result<Vec<u8>, GeoError> {
+pub fn tile_png(r: &Resampler<'_>, encoding: Encoding, t: TileXyz, size: u32) -> Vec<u8> {
     let z: Vec<f32> = r
-        .tile(Scheme::Mercator, t, size as usize, Points::Centres)?
+        .tile(Scheme::Mercator, t, size as usize, Points::Centres)
         .into_iter()
         .map(|h| h.unwrap_or(0.0))
         .collect();
-    Ok(encode_png(size, size, &z, encoding))
+    encode_png(size, size, &z, encoding)
 }

@@ -13,8 +13,8 @@
 //! [`LATTICE`] points and interpolated bilinearly between (the projections are smooth: the
 //! interpolation moves a point by well under a thousandth of a sample).
 
+use crate::geo::GeoTransform;
 use crate::geo::tiling::{Scheme, TileXyz};
-use crate::geo::{GeoError, GeoTransform};
 use crate::store::Store;
 
 /// Points between exactly projected positions, for a projected store.
@@ -73,43 +73,37 @@ impl<'a> Resampler<'a> {
         Some(top + (bottom - top) * fy)
     }
 
-    /// The height at longitude `lon`, latitude `lat` (degrees), or `None` outside the store.
-    pub fn at(&self, lon: f64, lat: f64) -> Result<Option<f32>, GeoError> {
-        let [c, r] = self.geo.sample(lon, lat)?;
-        Ok(self.bilinear(c, r))
+    /// The height at longitude `lon`, latitude `lat` (degrees), or `None` outside the store
+    /// (or outside the domain of its projection).
+    pub fn at(&self, lon: f64, lat: f64) -> Option<f32> {
+        let [c, r] = self.geo.sample(lon, lat).ok()?;
+        self.bilinear(c, r)
     }
 
     /// Heights at `n` x `n` points of tile `t` of `scheme`, row by row from the north edge.
-    pub fn tile(
-        &self,
-        scheme: Scheme,
-        t: TileXyz,
-        n: usize,
-        points: Points,
-    ) -> Result<Vec<Option<f32>>, GeoError> {
+    pub fn tile(&self, scheme: Scheme, t: TileXyz, n: usize, points: Points) -> Vec<Option<f32>> {
         let n = n.max(2);
         let frac = |i: usize| match points {
             Points::Edges => i as f64 / (n - 1) as f64,
             Points::Centres => (i as f64 + 0.5) / n as f64,
         };
-        let exact = |i: usize, j: usize| -> Result<[f64; 2], GeoError> {
+        // A point outside the projection's domain is outside the store: NaN has no height.
+        let exact = |i: usize, j: usize| -> [f64; 2] {
             let [lon, lat] = scheme.point(t, frac(i), frac(j));
-            self.geo.sample(lon, lat)
+            self.geo.sample(lon, lat).unwrap_or([f64::NAN; 2])
         };
-        let pos = self.positions(n, &exact)?;
-        // The footprint of one output point, in samples along each axis, from the tile's
-        // corners: beyond one sample, average taps across it.
-        let span = |a: [f64; 2], b: [f64; 2]| [(b[0] - a[0]).abs(), (b[1] - a[1]).abs()];
-        let across = span(pos[0], pos[n - 1]);
-        let down = span(pos[0], pos[(n - 1) * n]);
+        let pos = self.positions(n, &exact);
+        // The footprint of one output point, in samples along each axis, from the spacing of
+        // the points at the tile's centre: beyond one sample, average taps across it.
+        let m = n / 2;
+        let (o, e, s) = (pos[m * n + m - 1], pos[m * n + m], pos[(m - 1) * n + m]);
         let step = [
-            (across[0].max(down[0])) / (n - 1) as f64,
-            (across[1].max(down[1])) / (n - 1) as f64,
+            (e[0] - o[0]).abs().max((e[0] - s[0]).abs()),
+            (e[1] - o[1]).abs().max((e[1] - s[1]).abs()),
         ];
         let taps = |s: f64| (s.round() as usize).clamp(1, MAX_TAPS);
         let (kx, ky) = (taps(step[0]), taps(step[1]));
-        Ok(pos
-            .iter()
+        pos.iter()
             .map(|&[c, r]| {
                 self.bilinear(c, r)?;
                 let (mut sum, mut count) = (0.0f32, 0u32);
@@ -130,24 +124,20 @@ impl<'a> Resampler<'a> {
                     Some(sum / count as f32)
                 }
             })
-            .collect())
+            .collect()
     }
 
     /// Sample positions of the `n` x `n` points, exactly for a WGS 84 store, else exactly on a
     /// lattice and interpolated between.
-    fn positions(
-        &self,
-        n: usize,
-        exact: &dyn Fn(usize, usize) -> Result<[f64; 2], GeoError>,
-    ) -> Result<Vec<[f64; 2]>, GeoError> {
+    fn positions(&self, n: usize, exact: &dyn Fn(usize, usize) -> [f64; 2]) -> Vec<[f64; 2]> {
         let mut out = vec![[0.0; 2]; n * n];
         if self.geo.georef().epsg == crate::geo::georef::EPSG_WGS84 {
             for j in 0..n {
                 for i in 0..n {
-                    out[j * n + i] = exact(i, j)?;
+                    out[j * n + i] = exact(i, j);
                 }
             }
-            return Ok(out);
+            return out;
         }
         let knots: Vec<usize> = (0..n)
             .step_by(LATTICE)
@@ -157,7 +147,7 @@ impl<'a> Resampler<'a> {
         let mut lattice = Vec::with_capacity(m * m);
         for &j in &knots {
             for &i in &knots {
-                lattice.push(exact(i, j)?);
+                lattice.push(exact(i, j));
             }
         }
         // For each index, the lattice cell it falls in and its fraction across.
@@ -180,7 +170,7 @@ impl<'a> Resampler<'a> {
                 out[j * n + i] = v;
             }
         }
-        Ok(out)
+        out
     }
 }
 
@@ -217,7 +207,7 @@ mod tests {
         let q = s.geometry().z_quantum;
         for (c, row) in [(0u32, 0u32), (64, 64), (17, 40)] {
             let [lon, lat] = geo.lonlat(c as f64, row as f64).unwrap();
-            let z = r.at(lon, lat).unwrap().unwrap();
+            let z = r.at(lon, lat).unwrap();
             assert!(
                 (z - s.sample_z(c, row) as f32 * q).abs() < 1e-3,
                 "{c},{row}"
@@ -231,7 +221,7 @@ mod tests {
             / 4.0;
         assert!((mid - mean).abs() < 1e-3);
         assert_eq!(r.bilinear(-0.01, 3.0), None);
-        assert_eq!(r.at(137.9, 35.99).unwrap(), None);
+        assert_eq!(r.at(137.9, 35.99), None);
     }
 
     #[test]
@@ -257,7 +247,7 @@ mod tests {
                 x: range.start_x,
                 y: range.start_y,
             };
-            let got = r.tile(scheme, t, n, points).unwrap();
+            let got = r.tile(scheme, t, n, points);
             let frac = |i: usize| match points {
                 Points::Edges => i as f64 / (n - 1) as f64,
                 Points::Centres => (i as f64 + 0.5) / n as f64,
@@ -280,6 +270,14 @@ mod tests {
             }
             assert!(inside > 0, "{scheme:?}: the tile misses the store");
         }
+        // Whole-globe tiles reach far outside UTM's domain: those points have no height, and
+        // the tile is still made.
+        for (scheme, x) in [(Scheme::Geographic, 1), (Scheme::Mercator, 0)] {
+            let t = TileXyz { z: 0, x, y: 0 };
+            let got = r.tile(scheme, t, 65, Points::Edges);
+            assert_eq!(got.len(), 65 * 65);
+            assert!(got.iter().any(Option::is_none));
+        }
     }
 
     #[test]
@@ -296,7 +294,7 @@ mod tests {
             x: range.start_x,
             y: range.start_y,
         };
-        let z = r.tile(Scheme::Geographic, t, 65, Points::Edges).unwrap();
+        let z = r.tile(Scheme::Geographic, t, 65, Points::Edges);
         let inside: Vec<f32> = z.iter().flatten().copied().collect();
         assert!(!inside.is_empty() && inside.len() < z.len());
         assert!(inside.iter().all(|&h| h >= lo - 0.01 && h <= hi + 0.01));

@@ -199,7 +199,7 @@ pub async fn cesium_tile(
     let body = compute(&state, move || {
         let f = terrain.formats.as_ref().map_err(Clone::clone)?;
         let r = Resampler::new(&terrain.store, &f.geo);
-        let m = tile_mesh(&r, terrain.store.tile_mesh(), tile).map_err(|e| e.to_string())?;
+        let m = tile_mesh(&r, terrain.store.tile_mesh(), tile);
         let mesh = QmMesh {
             west: m.bounds.west,
             south: m.bounds.south,
@@ -316,7 +316,7 @@ pub async fn raster_tile(
     let body = compute(&state, move || {
         let f = terrain.formats.as_ref().map_err(Clone::clone)?;
         let r = Resampler::new(&terrain.store, &f.geo);
-        tile_png(&r, enc, tile, size).map_err(|e| e.to_string())
+        Ok(tile_png(&r, enc, tile, size))
     })
     .await?;
     Ok(tile_response(body, "image/png".into(), etag, false))
