@@ -204,3 +204,69 @@ async fn bad_format_addresses_get_400_or_404_and_the_server_goes_on() {
     assert_eq!(status, 200);
     server.stop().await;
 }
+
+/// The loop users close: Relief's PNG tiles saved as a `Z/X/Y.png` folder and built back by
+/// Relief's terrain-tile reader (a mosaic) give Relief's heights at every pixel inside the
+/// terrain, within half an encoding step: the writer and the reader place pixels alike.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn served_png_tiles_read_back_as_a_mosaic_give_relief_heights() {
+    use relief_server::dem::{LoadOptions, load_all};
+    use relief_server::geo::GeoTransform;
+    let server = TestServer::start(Limits::default()).await;
+    let t = server.state.terrain().unwrap();
+    let f = t.formats.as_ref().unwrap();
+    let layer = &f.raster[0];
+    let z = layer.max_level;
+    let range = Scheme::Mercator.range(&layer.bounds, z).unwrap();
+    let r = Resampler::new(&t.store, &f.geo);
+    for enc in [Encoding::TerrainRgb, Encoding::Terrarium] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut files = Vec::new();
+        for y in range.start_y..=range.end_y {
+            for x in range.start_x..=range.end_x {
+                let path = format!("/tiles/{}/{z}/{x}/{y}.png", enc.name());
+                let (status, _, png) = get(&server, &path, &[]).await;
+                assert_eq!(status, 200, "{path}");
+                let file = dir.path().join(format!("{z}/{x}/{y}.png"));
+                std::fs::create_dir_all(file.parent().unwrap()).unwrap();
+                std::fs::write(&file, png).unwrap();
+                files.push(file.to_string_lossy().to_string());
+            }
+        }
+        let opts = LoadOptions {
+            encoding: Some(enc),
+            ..LoadOptions::default()
+        };
+        let dem = load_all(&files, &opts).unwrap();
+        let g = dem.georef.clone().expect("tiles are placed by their z/x/y");
+        assert_eq!(g.epsg, 3857);
+        let back = GeoTransform::new(&g).unwrap();
+        let (mut checked, mut worst) = (0usize, 0f64);
+        for row in (0..dem.height).step_by(3) {
+            for col in (0..dem.width).step_by(3) {
+                let [lon, lat] = back.lonlat(col as f64, row as f64).unwrap();
+                // Pixels outside the terrain hold 0 m; compare those inside.
+                if let Some(want) = r.at(lon, lat) {
+                    let got = dem.at(col, row);
+                    worst = worst.max(f64::from((got - want).abs()));
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 1000, "{checked} pixels inside the terrain");
+        // Half a step, plus what the round trip through the projection moves a pixel centre
+        // (a micrometre here, worth well under a millimetre of height).
+        assert!(
+            worst <= enc.step() / 2.0 + 1e-3,
+            "{}: worst {worst} m over {checked} pixels",
+            enc.name()
+        );
+        println!(
+            "{}: {} tiles at zoom {z} read back; {checked} pixels, worst {worst:.4} m (half a step {:.4} m)",
+            enc.name(),
+            files.len(),
+            enc.step() / 2.0
+        );
+    }
+    server.stop().await;
+}
