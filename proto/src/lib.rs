@@ -15,6 +15,7 @@
 //!   [`close`]: the reasons a session ends; [`snapshot`]: a cut in one bit per inner node.
 //! - [`errors`]: one-line error reports for the command lines.
 //! - [`path`]: the standard and stress camera paths.
+//! - [`rng`]: a small seeded generator (splitmix64) for load plans, benchmarks and tests.
 //! - [`tile`]: the tile stream (paper 001): the tile pyramid's shape, tile bodies with crack
 //!   patches, tile deltas, the tile cache both ends keep, and snapshots of an active tile set.
 //! - [`mesh`]: the mesh reconstruction rule (paper 000, section 3.5): the brute-force oracle and the
@@ -34,6 +35,7 @@ pub mod msg;
 pub mod nodeset;
 mod paged;
 pub mod path;
+pub mod rng;
 pub mod snapshot;
 pub mod terrain;
 pub mod tile;

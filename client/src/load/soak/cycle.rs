@@ -39,33 +39,8 @@ impl Default for CycleShape {
     }
 }
 
-/// splitmix64: a small seeded generator, one per client.
-#[derive(Clone, Debug)]
-pub struct Rng(u64);
-
-impl Rng {
-    /// A generator for `seed`.
-    pub fn new(seed: u64) -> Rng {
-        Rng(seed)
-    }
-
-    /// The next 64 random bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// A value in `lo..=hi` (`lo` when `hi <= lo`).
-    pub fn between(&mut self, lo: u32, hi: u32) -> u32 {
-        if hi <= lo {
-            return lo;
-        }
-        lo + (self.next_u64() % (u64::from(hi - lo) + 1)) as u32
-    }
-}
+/// The seeded generator each client draws its plan from.
+pub use relief_proto::rng::Rng;
 
 /// The counts every client adds to as it goes (read by the sampler while the soak runs).
 #[derive(Debug)]

@@ -4,20 +4,7 @@ use relief_proto::delta::{Delta, Split};
 use relief_proto::mesh::Tri;
 use std::collections::BTreeSet;
 
-/// A small deterministic generator (xorshift64*), so the test needs no RNG crate.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n as u64) as usize
-    }
-}
+use relief_proto::rng::Rng;
 
 /// A random delta from `shadow`'s cut: a few merges of nodes whose children are all active, or
 /// a few splits of active nodes; `shadow` is moved to the cut after it.
@@ -127,7 +114,7 @@ fn start(w: u32, h: u32, root_z: i32) -> (TerrainGeometry, Mirror, FanMesh, Scen
 fn records_follow_random_splits_and_merges() {
     let (geom, mut mirror, mut mesh, mut scene) = start(37, 29, 400);
     let mut shadow = Cut::root(&geom.shape);
-    let mut rng = Rng(0x5eed_1234_abcd);
+    let mut rng = Rng::new(0x5eed_1234_abcd);
     let mut changes = Vec::new();
     for seq in 1..=400u64 {
         let delta = random_delta(&geom, &mut shadow, &mut rng, seq);

@@ -97,7 +97,7 @@ fn check_horizon_point(mesh: &QmMesh, seed: u64) {
     let cap = (e - w).max(n - s).to_radians();
     assert!(norm(hop) < 1.0 / cap.cos() + 1e-3, "{}", norm(hop));
 
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let (mut occluded, mut visible) = (0, 0);
     for _ in 0..4000 {
         let lon = rng.range(w - 40.0, e + 40.0);

@@ -17,26 +17,7 @@ use super::normals::{oct_decode, oct_encode, vertex_normals};
 use super::*;
 use proptest::prelude::*;
 
-/// A small deterministic generator (xorshift64*), so failures reproduce.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.unit()
-    }
-}
+use relief_proto::rng::Rng;
 
 /// A `cols` x `rows` grid over the bounds, row-major from the south-west, two counter-clockwise
 /// triangles a cell.
@@ -77,7 +58,7 @@ fn sine_terrain(lon: f64, lat: f64) -> f64 {
 /// The grid with interior vertices jittered inside their cells and the vertex order shuffled:
 /// an irregular triangulation whose vertices are not in first-use order.
 fn irregular(seed: u64) -> QmMesh {
-    let mut rng = Rng(seed);
+    let mut rng = Rng::new(seed);
     let mut mesh = grid(ALPS, 17, 13, |_, _| 0.0);
     let (dx, dy) = ((ALPS[2] - ALPS[0]) / 16.0, (ALPS[3] - ALPS[1]) / 12.0);
     for v in &mut mesh.vertices {
@@ -91,7 +72,7 @@ fn irregular(seed: u64) -> QmMesh {
     let n = mesh.vertices.len();
     let mut perm: Vec<usize> = (0..n).collect();
     for i in (1..n).rev() {
-        perm.swap(i, (rng.next() % (i as u64 + 1)) as usize);
+        perm.swap(i, rng.below(i + 1));
     }
     let mut new_of_old = vec![0u32; n];
     for (new, &old) in perm.iter().enumerate() {
