@@ -14,7 +14,7 @@
 //! in a computation slot, off the async threads. A terrain without a georeference answers 404
 //! with the reason; a malformed z/x/y gets 400, a tile outside the terrain or too deep 404.
 
-use super::http::ApiError;
+use super::http::{ApiError, MAX_AGE_S, not_modified};
 use super::metrics::ErrorKind;
 use super::state::{AppState, Terrain};
 use crate::formats::cesium::tile_mesh;
@@ -25,13 +25,11 @@ use crate::formats::terrain_rgb::Encoding;
 use crate::geo::tiling::{MAX_LEVEL, TileXyz};
 use axum::Json;
 use axum::extract::{Path, Query, State};
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use std::sync::Arc;
 
-/// How long clients and caches may keep a tile without asking again, seconds.
-const MAX_AGE_S: u32 = 86_400;
 /// Cesium's media type for quantized-mesh tiles.
 const QUANTIZED_MESH: &str = "application/vnd.quantized-mesh";
 
@@ -73,27 +71,6 @@ fn address(
         )));
     }
     Ok((TileXyz { z: z as u8, x, y }, which))
-}
-
-/// 304 when `If-None-Match` names `etag`.
-fn not_modified(headers: &HeaderMap, etag: &str) -> Option<Response> {
-    let matches = headers
-        .get(header::IF_NONE_MATCH)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|e| e.trim() == etag || e.trim() == "*"));
-    matches.then(|| {
-        (
-            StatusCode::NOT_MODIFIED,
-            [
-                (header::ETAG, etag.to_string()),
-                (
-                    header::CACHE_CONTROL,
-                    format!("public, max-age={MAX_AGE_S}"),
-                ),
-            ],
-        )
-            .into_response()
-    })
 }
 
 /// Runs `work` (a tile's making) in a computation slot, off the async threads.

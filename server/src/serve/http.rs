@@ -9,7 +9,7 @@ use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use axum::Json;
 use axum::body::Body;
 use axum::extract::State;
-use axum::http::{StatusCode, header};
+use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use relief_proto::close::CloseReason;
 use relief_proto::codec;
@@ -74,6 +74,31 @@ impl IntoResponse for ApiError {
         )
             .into_response()
     }
+}
+
+/// How long clients and caches may keep a tile without asking again, seconds.
+pub const MAX_AGE_S: u32 = 86_400;
+
+/// 304 Not Modified (with the tag and caching headers) when `If-None-Match` names `etag`: for
+/// resources that never change for a terrain (tiles).
+pub fn not_modified(headers: &HeaderMap, etag: &str) -> Option<Response> {
+    let matches = headers
+        .get(header::IF_NONE_MATCH)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.split(',').any(|e| e.trim() == etag || e.trim() == "*"));
+    matches.then(|| {
+        (
+            StatusCode::NOT_MODIFIED,
+            [
+                (header::ETAG, etag.to_string()),
+                (
+                    header::CACHE_CONTROL,
+                    format!("public, max-age={MAX_AGE_S}"),
+                ),
+            ],
+        )
+            .into_response()
+    })
 }
 
 fn ready(state: &AppState) -> Result<Arc<Terrain>, ApiError> {

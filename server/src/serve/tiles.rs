@@ -7,19 +7,16 @@
 //! A tile's body is the record of an added tile in a tile delta without its index: `varint`
 //! mesh length, `varint` patch length, the mesh blob, the patch blob (`docs/protocol.md`).
 
-use super::http::{ApiError, BINARY};
+use super::http::{ApiError, BINARY, MAX_AGE_S, not_modified};
 use super::state::AppState;
 use axum::Json;
 use axum::extract::{Path, Query, State};
-use axum::http::{HeaderMap, StatusCode, header};
+use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use relief_proto::tile::TileId;
 use relief_proto::tile::delta::put_varint;
 use serde::Deserialize;
 use std::sync::Arc;
-
-/// How long clients and caches may keep a tile without asking again, seconds.
-const MAX_AGE_S: u32 = 86_400;
 
 /// The query of a tile request.
 #[derive(Debug, Deserialize)]
@@ -114,18 +111,10 @@ pub async fn tile(
         t.info.id,
         if patches { "p" } else { "n" }
     );
-    let cache = format!("public, max-age={MAX_AGE_S}");
-    let matches = headers
-        .get(header::IF_NONE_MATCH)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|e| e.trim() == etag || e.trim() == "*"));
-    if matches {
-        return Ok((
-            StatusCode::NOT_MODIFIED,
-            [(header::ETAG, etag), (header::CACHE_CONTROL, cache)],
-        )
-            .into_response());
+    if let Some(r) = not_modified(&headers, &etag) {
+        return Ok(r);
     }
+    let cache = format!("public, max-age={MAX_AGE_S}");
     let (mesh, patch) = t.store.tile_blobs(index);
     let patch = if patches { patch } else { &[] };
     let mut body = Vec::with_capacity(mesh.len() + patch.len() + 8);

@@ -193,7 +193,7 @@ proptest! {
             .map(|_| [rng.range(b[0], b[2]), rng.range(b[1], b[3]), rng.range(-100.0, 9000.0)])
             .collect();
         let triangles = (0..nt)
-            .map(|_| [0; 3].map(|_: u32| rng.below(n as usize) as u32))
+            .map(|_| [0; 3].map(|_: u32| rng.below(n) as u32))
             .collect();
         let mesh = QmMesh { west: b[0], south: b[1], east: b[2], north: b[3], vertices, triangles };
         round_trip(&mesh, &QmExtensions { normals: true, metadata: None });
