@@ -112,3 +112,25 @@ fn connection_limits_follow_the_session_limits_unless_set() {
     assert_eq!(c.limits.max_connections_per_ip, 7);
     assert_eq!(c.limits.max_connections, Limits::default().max_connections);
 }
+
+#[test]
+fn the_web_lib_comes_from_the_flag_then_the_file_then_the_repository() {
+    let c = ServeArgs::default().resolve().unwrap();
+    assert_eq!(c.web_lib, PathBuf::from(DEFAULT_WEB_LIB));
+    assert!(DEFAULT_WEB_LIB.ends_with("/../web/node_modules"));
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "web_lib = \"/srv/relief/node_modules\"").unwrap();
+    let from_file = ServeArgs {
+        config: Some(f.path().to_path_buf()),
+        ..ServeArgs::default()
+    };
+    assert_eq!(
+        from_file.resolve().unwrap().web_lib,
+        PathBuf::from("/srv/relief/node_modules")
+    );
+    let flag = ServeArgs {
+        web_lib: Some("/opt/web".into()),
+        ..from_file
+    };
+    assert_eq!(flag.resolve().unwrap().web_lib, PathBuf::from("/opt/web"));
+}
