@@ -34,9 +34,16 @@ enum Command {
     Serve(Box<crate::serve::ServeArgs>),
     /// Preprocess a DEM into a store (the vertex quadtree, memory-mapped by the server).
     Build {
-        /// The DEM: a GeoTIFF (int16, uint16, float32), a 16-bit grayscale PNG, or
-        /// `synthetic:SIZE[:SEED]` for a deterministic fractal terrain.
-        input: String,
+        /// The DEM: a GeoTIFF (int16, uint16, float32), a 16-bit grayscale PNG, an SRTM `.hgt`
+        /// file (1" or 3", placed by its name, e.g. N35E138.hgt), a terrain-RGB or Terrarium PNG
+        /// tile (with --encoding), or `synthetic:SIZE[:SEED]` for a deterministic fractal
+        /// terrain. Several files make one mosaic, e.g. `N35E138.hgt N35E139.hgt` or
+        /// `tiles/12/*/*.png`: they must share a CRS and grid step and lie on one grid; the
+        /// store covers the box around them, samples none covers are voids (filled like the
+        /// others), and where files overlap (neighbouring .hgt files share an edge row or
+        /// column) the later file's heights win, except its voids.
+        #[arg(required = true, num_args = 1.., value_name = "INPUT")]
+        inputs: Vec<String>,
         /// Where to write the store.
         #[arg(short, long)]
         output: PathBuf,
@@ -177,9 +184,10 @@ impl From<TileMeshArg> for relief_proto::tile::body::MeshKind {
 /// What both benchmarks take.
 #[derive(clap::Args)]
 struct BenchArgs {
-    /// The DEM to fly over (same forms as `build`'s input).
-    #[arg(long)]
-    dem: String,
+    /// The DEM to fly over (same forms as `build`'s inputs; several files after --dem make a
+    /// mosaic, as for `build`).
+    #[arg(long, required = true, num_args = 1..)]
+    dem: Vec<String>,
     /// Which path: `standard` (60 s loop, 100-300 m above ground) or `stress` (faster, lower).
     #[arg(long, default_value = "standard")]
     path: PathKind,
@@ -289,7 +297,7 @@ fn run() -> anyhow::Result<()> {
                 .block_on(crate::serve::run(config))?;
         }
         Command::Build {
-            input,
+            inputs,
             output,
             z_quantum,
             tile_size,
@@ -297,7 +305,7 @@ fn run() -> anyhow::Result<()> {
             dem,
         } => {
             relief_proto::tile::TileShape::new(2, 2, tile_size)?;
-            let d = dem.load(&input).context("cannot load the DEM")?;
+            let d = dem.load(&inputs).context("cannot load the DEM")?;
             let opts = preprocess::BuildOptions {
                 quantum: z_quantum,
                 tile_size,
@@ -453,7 +461,7 @@ mod tests {
         let TerrainSource::Dem(spec, opts) = args.resolve().unwrap().source else {
             panic!("not a DEM")
         };
-        assert_eq!(spec, "heights.png");
+        assert_eq!(spec, ["heights.png"]);
         assert_eq!(
             (opts.spacing_x, opts.spacing_y, opts.png.offset),
             (Some(30.0), Some(25.0), -17.0)
@@ -464,6 +472,84 @@ mod tests {
             panic!("not build")
         };
         assert_eq!(a.options(), opts);
+    }
+
+    #[test]
+    fn build_takes_several_inputs_and_tile_options() {
+        use crate::formats::terrain_rgb::Encoding;
+        use crate::geo::mercator::TileId;
+        let cli = Cli::try_parse_from([
+            "relief-server",
+            "build",
+            "N35E138.hgt",
+            "N35E139.hgt",
+            "-o",
+            "x.relief",
+        ])
+        .unwrap();
+        let Command::Build { inputs, .. } = cli.command else {
+            panic!("not build")
+        };
+        assert_eq!(inputs, ["N35E138.hgt", "N35E139.hgt"]);
+        let cli = Cli::try_parse_from([
+            "relief-server",
+            "build",
+            "t.png",
+            "--encoding",
+            "mapbox",
+            "--tile",
+            "12/3629/1617",
+            "-o",
+            "x.relief",
+        ])
+        .unwrap();
+        let Command::Build { dem, .. } = cli.command else {
+            panic!("not build")
+        };
+        let o = dem.options();
+        assert_eq!(o.encoding, Some(Encoding::TerrainRgb));
+        assert_eq!(o.tile, TileId::new(12, 3629, 1617).ok());
+        // No input, a bad encoding, a tile off the map: refused by the parser.
+        for bad in [
+            &["build", "-o", "x.relief"][..],
+            &["build", "t.png", "--encoding", "rgb", "-o", "x"],
+            &["build", "t.png", "--tile", "2/4/0", "-o", "x"],
+        ] {
+            let e = Cli::try_parse_from(["relief-server"].iter().chain(bad)).err();
+            assert!(e.is_some(), "{bad:?}");
+        }
+        let e = Cli::try_parse_from(["relief-server", "build", "t.png", "--tile", "2/4/0"])
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("not on the map"), "{e}");
+        // Bench and serve take several files after --dem.
+        let cli = Cli::try_parse_from([
+            "relief-server",
+            "bench",
+            "lod",
+            "--dem",
+            "a.hgt",
+            "b.hgt",
+            "--json",
+        ])
+        .unwrap();
+        let Command::Bench {
+            which: BenchCommand::Lod { run },
+        } = cli.command
+        else {
+            panic!("not bench lod")
+        };
+        assert_eq!(run.dem, ["a.hgt", "b.hgt"]);
+        let cli =
+            Cli::try_parse_from(["relief-server", "serve", "--dem", "a.hgt", "b.hgt"]).unwrap();
+        let Command::Serve(args) = cli.command else {
+            panic!("not serve")
+        };
+        let TerrainSource::Dem(specs, _) = args.resolve().unwrap().source else {
+            panic!("not a DEM")
+        };
+        assert_eq!(specs, ["a.hgt", "b.hgt"]);
     }
 
     /// `(fractal, flat, rough)` of an `info` command line.

@@ -4,8 +4,10 @@
 //!
 //! - [`raw`]: raw sockets for the hostile-input tests.
 //! - [`bystander`]: a session that flies on during an attack and records its latency.
+//! - [`http`]: plain HTTP/1.1 GETs over a socket, status and headers as sent.
 
 pub mod bystander;
+pub mod http;
 pub mod raw;
 
 use relief_proto::codec;

@@ -10,9 +10,9 @@ use relief_proto::tile::delta::get_varint;
 use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::view::Camera;
 use relief_server::serve::config::Limits;
+use relief_tests::http::{get as http, header};
 use relief_tests::{TestServer, fly, path};
 use std::io::Read;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 fn tiles_config(url: &str, cache: u32, budget: Option<u32>) -> SessionConfig {
     let mut c = SessionConfig::new(url);
@@ -151,67 +151,6 @@ async fn vertex_and_tile_sessions_share_one_server() {
             .contains("relief_sessions_total 12")
     );
     server.stop().await;
-}
-
-/// One HTTP/1.1 request over a fresh connection: status, headers (lower-case names), body.
-async fn http(
-    server: &TestServer,
-    path: &str,
-    headers: &[&str],
-) -> (u16, Vec<(String, String)>, Vec<u8>) {
-    let mut sock = tokio::net::TcpStream::connect(server.addr).await.unwrap();
-    let mut req = format!("GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n");
-    for h in headers {
-        req.push_str(h);
-        req.push_str("\r\n");
-    }
-    req.push_str("\r\n");
-    sock.write_all(req.as_bytes()).await.unwrap();
-    let mut raw = Vec::new();
-    sock.read_to_end(&mut raw).await.unwrap();
-    let split = raw
-        .windows(4)
-        .position(|w| w == b"\r\n\r\n")
-        .expect("headers end");
-    let head = String::from_utf8_lossy(&raw[..split]).to_string();
-    let mut lines = head.lines();
-    let status: u16 = lines
-        .next()
-        .unwrap()
-        .split(' ')
-        .nth(1)
-        .unwrap()
-        .parse()
-        .unwrap();
-    let hs: Vec<(String, String)> = lines
-        .filter_map(|l| l.split_once(':'))
-        .map(|(k, v)| (k.trim().to_lowercase(), v.trim().to_string()))
-        .collect();
-    let mut body = raw[split + 4..].to_vec();
-    if hs
-        .iter()
-        .any(|(k, v)| k == "transfer-encoding" && v == "chunked")
-    {
-        body = dechunk(&body);
-    }
-    (status, hs, body)
-}
-
-fn dechunk(mut b: &[u8]) -> Vec<u8> {
-    let mut out = Vec::new();
-    loop {
-        let eol = b.windows(2).position(|w| w == b"\r\n").unwrap();
-        let n = usize::from_str_radix(std::str::from_utf8(&b[..eol]).unwrap().trim(), 16).unwrap();
-        if n == 0 {
-            return out;
-        }
-        out.extend_from_slice(&b[eol + 2..eol + 2 + n]);
-        b = &b[eol + 2 + n + 2..];
-    }
-}
-
-fn header<'a>(hs: &'a [(String, String)], name: &str) -> Option<&'a str> {
-    hs.iter().find(|(k, _)| k == name).map(|(_, v)| v.as_str())
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

@@ -14,9 +14,10 @@ pub enum DemError {
         /// What the OS said.
         source: std::io::Error,
     },
-    /// The file is neither a TIFF nor a PNG, by extension or by its first bytes.
+    /// The file is neither a TIFF nor a PNG by its first bytes, nor named as one of the formats
+    /// Relief reads.
     #[error(
-        "{path}: unknown file format; Relief reads GeoTIFF (.tif, .tiff), 16-bit grayscale PNG (.png) and synthetic:SIZE[:SEED]"
+        "{path}: unknown file format; Relief reads GeoTIFF (.tif, .tiff), 16-bit grayscale PNG (.png), terrain-RGB and Terrarium PNG tiles (.png with --encoding), SRTM .hgt and synthetic:SIZE[:SEED]"
     )]
     UnknownFormat {
         /// The file.
@@ -114,6 +115,24 @@ pub enum DemError {
         /// The input.
         input: String,
         /// What is wrong.
+        detail: String,
+    },
+    /// Input whose place on the Earth cannot be told: an `.hgt` file's name, a tile without
+    /// z/x/y.
+    #[error("{input}: cannot tell where it lies: {detail}")]
+    Place {
+        /// The input.
+        input: String,
+        /// What is missing and how to give it.
+        detail: String,
+    },
+    /// An input that does not fit the mosaic of the ones before it (another CRS or grid step,
+    /// off their grid, no georeference).
+    #[error("{input}: cannot join it to the mosaic: {detail}")]
+    Mosaic {
+        /// The input.
+        input: String,
+        /// What does not fit.
         detail: String,
     },
     /// A `synthetic:` spec that does not parse.

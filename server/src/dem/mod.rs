@@ -4,12 +4,17 @@
 //! - [`geotiff`]: int16, uint16, int32, float32 and float64 GeoTIFFs, with GDAL_NODATA and the
 //!   GeoTIFF spacing tags (geographic grids get metre spacing from their latitude on WGS 84).
 //! - [`png`]: 16-bit grayscale PNGs with scale, offset, no-data value and spacing given by flags.
+//! - [`rgb_tile`]: terrain-RGB and Terrarium PNG tiles (`--encoding`), placed in Web Mercator by
+//!   their z/x/y (from the path or `--tile`).
+//! - SRTM `.hgt` files, placed by their names (`crate::formats::hgt`).
+//! - [`mosaic`]: several adjacent inputs on one grid joined into one ([`load_all`]).
 //! - [`synthetic`]: `synthetic:SIZE[:SEED]`, a deterministic fractal terrain, 10 m spacing.
 //! - [`fill`]: smooth (harmonic) void filling; the [`VoidMask`] keeps where the voids were.
 //!
 //! [`load`] dispatches on the spec, refuses unusable input with a [`DemError`] naming the problem
-//! and the input, and fills voids; the void mask is kept in the [`Dem`]. [`embedded_default`] is
-//! the Mt Fuji crop shipped in `server/data/`.
+//! and the input, and fills voids; the void mask is kept in the [`Dem`]. [`load_all`] does the
+//! same for one input or a mosaic of several, and is what every command calls. [`embedded_default`]
+//! is the Mt Fuji crop shipped in `server/data/`.
 //!
 //! What [`finish`] refuses, after a reader has decoded the samples:
 //! - fewer than 2 x 2 samples, or more than [`LoadOptions::max_samples`] (readers check the size
@@ -28,14 +33,18 @@ mod error;
 pub mod fill;
 pub mod geotiff;
 mod mask;
+pub mod mosaic;
 mod noise;
 pub mod png;
+pub mod rgb_tile;
 pub mod synthetic;
 
 pub use args::DemArgs;
 pub use error::DemError;
 pub use mask::VoidMask;
 
+use crate::formats::terrain_rgb::Encoding;
+use crate::geo::mercator::TileId;
 use crate::geo::{GeoTransform, Georef};
 use std::io::{BufRead, BufReader};
 
@@ -139,6 +148,12 @@ pub struct LoadOptions {
     /// Longitude and latitude (degrees) of the north-west sample, for input that carries no
     /// georeference (synthetic, PNG); the grid is then WGS 84 degrees at the ground spacing.
     pub origin: Option<(f64, f64)>,
+    /// Read PNGs as terrain-RGB or Terrarium tiles in this encoding (`--encoding`) rather than
+    /// as 16-bit grayscale heights.
+    pub encoding: Option<Encoding>,
+    /// The web map tile a terrain-RGB or Terrarium PNG is (`--tile`), where its path does not
+    /// say; one input only.
+    pub tile: Option<TileId>,
     /// Show progress bars on long work (synthetic generation, void filling of big grids); tests
     /// and servers turn it off.
     pub progress: bool,
@@ -152,6 +167,8 @@ impl Default for LoadOptions {
             spacing_y: None,
             png: PngOptions::default(),
             origin: None,
+            encoding: None,
+            tile: None,
             progress: false,
         }
     }
@@ -205,10 +222,11 @@ pub fn check_size(source: &str, w: u32, h: u32, opts: &LoadOptions) -> Result<()
 enum Format {
     Tiff,
     Png,
+    Hgt,
 }
 
 /// The format of a file: by its first bytes when they are a TIFF or PNG signature (so that a
-/// misnamed file still loads), else by extension.
+/// misnamed file still loads), else by extension (an `.hgt` file has no signature).
 fn sniff(path: &str, head: &[u8]) -> Option<Format> {
     if head.starts_with(b"\x89PNG\r\n\x1a\n") {
         return Some(Format::Png);
@@ -227,30 +245,87 @@ fn sniff(path: &str, head: &[u8]) -> Option<Format> {
     match ext.as_deref() {
         Some("png") => Some(Format::Png),
         Some("tif" | "tiff" | "gtiff") => Some(Format::Tiff),
+        Some("hgt") => Some(Format::Hgt),
         _ => None,
     }
 }
 
-/// Loads the DEM named by `spec`: a `synthetic:SIZE[:SEED]` spec, or a GeoTIFF or PNG path
-/// (recognised by its first bytes, else by extension), and fills its voids.
+/// Loads the DEM named by `spec`: a `synthetic:SIZE[:SEED]` spec, or the path of a GeoTIFF, a
+/// PNG (16-bit grayscale, or a terrain-RGB or Terrarium tile with [`LoadOptions::encoding`])
+/// or an SRTM `.hgt` file (recognised by its first bytes, else by extension), and fills its
+/// voids.
 pub fn load(spec: &str, opts: &LoadOptions) -> Result<Dem, DemError> {
     if let Some(rest) = spec.strip_prefix("synthetic:") {
+        check_tile_options(spec, "a synthetic terrain", opts)?;
         return synthetic::load(spec, rest, opts);
     }
+    let raw = read_file(spec, opts)?;
+    finish(spec, raw, opts)
+}
+
+/// Loads one DEM ([`load`]) or, given several files, the mosaic of them ([`mosaic`]): what
+/// every command that reads a DEM calls.
+pub fn load_all<S: AsRef<str>>(specs: &[S], opts: &LoadOptions) -> Result<Dem, DemError> {
+    match specs {
+        [] => Err(DemError::BadOptions {
+            input: "the command line".into(),
+            detail: "no DEM given".into(),
+        }),
+        [one] => load(one.as_ref(), opts),
+        many => {
+            let specs: Vec<&str> = many.iter().map(AsRef::as_ref).collect();
+            let (source, raw) = mosaic::join(&specs, opts)?;
+            finish(&source, raw, opts)
+        }
+    }
+}
+
+/// Reads the samples of the file `path`, by its format, before checks and void filling.
+pub fn read_file(path: &str, opts: &LoadOptions) -> Result<RawGrid, DemError> {
     let io = |source| DemError::Io {
-        path: spec.into(),
+        path: path.into(),
         source,
     };
-    let mut file = BufReader::new(std::fs::File::open(spec).map_err(io)?);
+    let mut file = BufReader::new(std::fs::File::open(path).map_err(io)?);
     let head = file.fill_buf().map_err(io)?;
-    let raw = match sniff(spec, head) {
-        Some(Format::Png) => png::read(spec, file, opts)?,
-        Some(Format::Tiff) => geotiff::read(spec, file, opts)?,
-        None => {
-            return Err(DemError::UnknownFormat { path: spec.into() });
+    match sniff(path, head) {
+        Some(Format::Png) => match opts.encoding {
+            Some(enc) => rgb_tile::read(path, file, enc, opts),
+            None if opts.tile.is_some() => Err(DemError::BadOptions {
+                input: path.into(),
+                detail: "--tile places a terrain-RGB or Terrarium tile; say which with \
+                         --encoding terrain-rgb or --encoding terrarium"
+                    .into(),
+            }),
+            None => png::read(path, file, opts),
+        },
+        Some(Format::Tiff) => {
+            check_tile_options(path, "a GeoTIFF", opts)?;
+            geotiff::read(path, file, opts)
         }
+        Some(Format::Hgt) => {
+            check_tile_options(path, "an SRTM .hgt file", opts)?;
+            let len = file.get_ref().metadata().map_err(io)?.len();
+            crate::formats::hgt::read(path, len, file, opts)
+        }
+        None => Err(DemError::UnknownFormat { path: path.into() }),
+    }
+}
+
+/// Refuses `--encoding` and `--tile` for input that is not a terrain tile, rather than
+/// ignoring them.
+fn check_tile_options(input: &str, what: &str, opts: &LoadOptions) -> Result<(), DemError> {
+    let flag = match (opts.encoding, opts.tile) {
+        (Some(_), _) => "--encoding",
+        (None, Some(_)) => "--tile",
+        (None, None) => return Ok(()),
     };
-    finish(spec, raw, opts)
+    Err(DemError::BadOptions {
+        input: input.into(),
+        detail: format!(
+            "{flag} reads terrain-RGB and Terrarium PNG tiles, and this is {what}; leave it out"
+        ),
+    })
 }
 
 /// Checks raw samples (see the module docs), applies spacing overrides and fills voids.

@@ -3,7 +3,8 @@
 //! (`--spacing-x`, `--spacing-y`); [`super::finish`] says so when it is missing.
 //!
 //! Only 16-bit grayscale is read: 8 bits (256 levels) are too coarse for terrain, and a colour PNG
-//! is an image of terrain, not heights.
+//! is an image of terrain, not heights, unless it is a terrain-RGB or Terrarium tile: those are
+//! read by [`super::rgb_tile`] when `--encoding` says which.
 
 use super::{DemError, LoadOptions, RawGrid, VoidMask, check_size};
 use image::{ColorType, ImageDecoder, codecs::png::PngDecoder};
@@ -34,10 +35,17 @@ pub fn read<R: BufRead + Seek>(
     let (w, h) = dec.dimensions();
     check_size(name, w, h, opts)?;
     if dec.color_type() != ColorType::L16 {
+        let tile = match dec.color_type() {
+            ColorType::Rgb8 | ColorType::Rgba8 => {
+                "; if it is a terrain-RGB or Terrarium tile, say which with --encoding \
+                 terrain-rgb or --encoding terrarium"
+            }
+            _ => "",
+        };
         return Err(DemError::Unsupported {
             path: name.into(),
             detail: format!(
-                "{:?} pixels; heights must be a 16-bit grayscale PNG",
+                "{:?} pixels; heights must be a 16-bit grayscale PNG{tile}",
                 dec.color_type()
             ),
         });
@@ -71,7 +79,7 @@ pub fn read<R: BufRead + Seek>(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::super::{DemError, LoadOptions, PngOptions, load};
     use image::{ImageBuffer, ImageFormat, Luma, Rgb};
 

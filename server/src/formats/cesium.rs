@@ -13,6 +13,7 @@
 //!   to the level whose 65-point tiles are as fine as the store's samples ([`CesiumLayer`]).
 //!   Other tiles are not available: the server answers 404, and Cesium upsamples parents.
 
+use super::quantized_mesh::availability_metadata;
 use super::sampler::{Points, Resampler};
 use crate::geo::tiling::{Scheme, TileRange, TileXyz, cesium_level_error};
 use crate::geo::{GeoError, GeoTransform, LonLatBounds};
@@ -115,7 +116,7 @@ impl CesiumLayer {
             let any = cut.start_x <= cut.end_x && cut.start_y <= cut.end_y;
             levels.push(if any { vec![cut] } else { Vec::new() });
         }
-        serde_json::json!({ "available": levels }).to_string()
+        availability_metadata(&levels)
     }
 }
 
@@ -210,15 +211,26 @@ mod tests {
         assert!(l.available(TileXyz { z: 0, x: 1, y: 0 }));
         assert!(!l.available(TileXyz { z: 13, x: 0, y: 0 }));
         let r8 = l.ranges[8];
-        assert_eq!((r8.start_x, r8.end_x, r8.start_y, r8.end_y), (452, 453, 177, 179));
-        assert!(!l.available(TileXyz { z: 8, x: 451, y: 178 }));
+        assert_eq!(
+            (r8.start_x, r8.end_x, r8.start_y, r8.end_y),
+            (452, 453, 177, 179)
+        );
+        assert!(!l.available(TileXyz {
+            z: 8,
+            x: 451,
+            y: 178
+        }));
         let j = l.layer_json(MeshKind::Grid, 7);
         assert_eq!(j["available"].as_array().unwrap().len(), 13);
         assert_eq!(j["available"][8][0]["startX"], 452);
         assert_eq!(j["scheme"], "tms");
         // Metadata lists the next levels' tiles under a tile, cut to the layer.
-        let m: serde_json::Value =
-            serde_json::from_str(&l.metadata(TileXyz { z: 8, x: 452, y: 178 })).unwrap();
+        let m: serde_json::Value = serde_json::from_str(&l.metadata(TileXyz {
+            z: 8,
+            x: 452,
+            y: 178,
+        }))
+        .unwrap();
         let a = m["available"].as_array().unwrap();
         assert_eq!(a.len(), 4);
         assert_eq!(a[0][0]["startX"], 904);

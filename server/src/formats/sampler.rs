@@ -151,7 +151,7 @@ impl<'a> Resampler<'a> {
         }
         let knots: Vec<usize> = (0..n)
             .step_by(LATTICE)
-            .chain(((n - 1) % LATTICE != 0).then_some(n - 1))
+            .chain((!(n - 1).is_multiple_of(LATTICE)).then_some(n - 1))
             .collect();
         let m = knots.len();
         let mut lattice = Vec::with_capacity(m * m);
@@ -218,7 +218,10 @@ mod tests {
         for (c, row) in [(0u32, 0u32), (64, 64), (17, 40)] {
             let [lon, lat] = geo.lonlat(c as f64, row as f64).unwrap();
             let z = r.at(lon, lat).unwrap().unwrap();
-            assert!((z - s.sample_z(c, row) as f32 * q).abs() < 1e-3, "{c},{row}");
+            assert!(
+                (z - s.sample_z(c, row) as f32 * q).abs() < 1e-3,
+                "{c},{row}"
+            );
         }
         let mid = r.bilinear(10.5, 20.5).unwrap();
         let mean = [(10, 20), (11, 20), (10, 21), (11, 21)]

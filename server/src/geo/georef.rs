@@ -65,6 +65,26 @@ impl Georef {
     pub fn crs(&self) -> String {
         format!("EPSG:{}", self.epsg)
     }
+
+    /// Ground metres between columns and between rows of a grid of `rows` rows, at the latitude
+    /// of its centre, where the CRS's units are not metres on the ground: WGS 84 degrees
+    /// ([`metres_per_degree`] on the ellipsoid) and Web Mercator (its metres times the cosine of
+    /// the latitude, the sphere's scale factor). `None` for other CRSs, whose units are taken
+    /// to be ground metres by their readers.
+    pub fn ground_spacing(&self, rows: u32) -> Option<(f64, f64)> {
+        let centre_y = self.first[1] - self.step[1] * rows.saturating_sub(1) as f64 / 2.0;
+        match self.epsg {
+            EPSG_WGS84 => {
+                let (mx, my) = metres_per_degree(centre_y.clamp(-90.0, 90.0));
+                Some((self.step[0] * mx, self.step[1] * my))
+            }
+            super::mercator::EPSG_WEB_MERCATOR => {
+                let k = super::mercator::lat_of(centre_y).to_radians().cos();
+                Some((self.step[0] * k, self.step[1] * k))
+            }
+            _ => None,
+        }
+    }
 }
 
 /// A longitude/latitude box in degrees (WGS 84).
@@ -112,6 +132,12 @@ pub enum GeoError {
     /// An origin off the globe (or too near a pole for a local grid).
     #[error("origin {0}, {1} must be a longitude in -180..180 and a latitude in -85..85")]
     Origin(f64, f64),
+    /// A web map tile that is not on the map.
+    #[error(
+        "tile {0}/{1}/{2} is not on the map: at zoom Z, X and Y must be below 2^Z, and Z at most {max}",
+        max = super::mercator::MAX_ZOOM
+    )]
+    Tile(u32, u32, u32),
 }
 
 /// Converts between a grid's sample positions and WGS 84 longitude/latitude.

@@ -7,6 +7,7 @@
 //!   map: one root tile, `y` counted from the north, latitudes to about +-85.05.
 
 use super::georef::LonLatBounds;
+use super::mercator::{HALF_WORLD, lat_of, y_of};
 use std::f64::consts::PI;
 
 /// The deepest level either scheme serves: a Web Mercator tile at 24 is 2.4 m wide at the
@@ -54,9 +55,9 @@ impl TileRange {
     }
 }
 
-/// Web Mercator's latitude limit: the latitude whose y equals the equator's length / 2.
+/// Web Mercator's latitude limit, where the square map ends (about 85.05 degrees).
 pub fn mercator_max_lat() -> f64 {
-    (PI.sinh()).atan().to_degrees()
+    lat_of(HALF_WORLD)
 }
 
 impl Scheme {
@@ -85,7 +86,7 @@ impl Scheme {
         let n = self.dims(z).1 as f64;
         match self {
             Scheme::Geographic => y / n * 180.0 - 90.0,
-            Scheme::Mercator => (PI * (1.0 - 2.0 * y / n)).sinh().atan().to_degrees(),
+            Scheme::Mercator => lat_of(HALF_WORLD * (1.0 - 2.0 * y / n)),
         }
     }
 
@@ -121,14 +122,14 @@ impl Scheme {
         let row = |lat: f64| match self {
             Scheme::Geographic => (lat + 90.0) / 180.0 * ny as f64,
             Scheme::Mercator => {
-                let lat = lat.clamp(-mercator_max_lat(), mercator_max_lat()).to_radians();
-                (1.0 - (lat.tan() + 1.0 / lat.cos()).ln() / PI) / 2.0 * ny as f64
+                let y = y_of(lat.clamp(-mercator_max_lat(), mercator_max_lat()));
+                (1.0 - y / HALF_WORLD) / 2.0 * ny as f64
             }
         };
         let span = |a: f64, b: f64, n: u32| {
             let (lo, hi) = (a.min(b).max(0.0), a.max(b).min(n as f64));
             let (first, last) = (lo.floor(), hi.ceil() - 1.0);
-            (first <= last && lo < hi).then(|| (first as u32, last as u32))
+            (first <= last && lo < hi).then_some((first as u32, last as u32))
         };
         let (start_x, end_x) = span(col(b.west), col(b.east), nx)?;
         let (start_y, end_y) = span(row(b.south), row(b.north), ny)?;
@@ -184,8 +185,22 @@ mod tests {
         for (x, y) in [(452, 177), (453, 179)] {
             assert!(g.bounds(TileXyz { z: 8, x, y }).overlaps(&fuji));
         }
-        assert!(!g.bounds(TileXyz { z: 8, x: 454, y: 178 }).overlaps(&fuji));
-        assert!(!g.bounds(TileXyz { z: 8, x: 453, y: 180 }).overlaps(&fuji));
+        assert!(
+            !g.bounds(TileXyz {
+                z: 8,
+                x: 454,
+                y: 178
+            })
+            .overlaps(&fuji)
+        );
+        assert!(
+            !g.bounds(TileXyz {
+                z: 8,
+                x: 453,
+                y: 180
+            })
+            .overlaps(&fuji)
+        );
     }
 
     #[test]
@@ -205,7 +220,10 @@ mod tests {
             north: 35.69 + 1e-6,
         };
         let r = m.range(&p, 10).unwrap();
-        assert_eq!((r.start_x, r.start_y, r.end_x, r.end_y), (909, 403, 909, 403));
+        assert_eq!(
+            (r.start_x, r.start_y, r.end_x, r.end_y),
+            (909, 403, 909, 403)
+        );
         // Latitude is not linear across a Mercator tile: the middle row lies north of the mean.
         let t = TileXyz { z: 2, x: 1, y: 0 };
         let mid = m.point(t, 0.5, 0.5)[1];

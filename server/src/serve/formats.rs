@@ -86,7 +86,10 @@ fn not_modified(headers: &HeaderMap, etag: &str) -> Option<Response> {
             StatusCode::NOT_MODIFIED,
             [
                 (header::ETAG, etag.to_string()),
-                (header::CACHE_CONTROL, format!("public, max-age={MAX_AGE_S}")),
+                (
+                    header::CACHE_CONTROL,
+                    format!("public, max-age={MAX_AGE_S}"),
+                ),
             ],
         )
             .into_response()
@@ -120,7 +123,10 @@ fn tile_response(body: Vec<u8>, content_type: String, etag: String, by_accept: b
         [
             (header::CONTENT_TYPE, content_type),
             (header::ETAG, etag),
-            (header::CACHE_CONTROL, format!("public, max-age={MAX_AGE_S}")),
+            (
+                header::CACHE_CONTROL,
+                format!("public, max-age={MAX_AGE_S}"),
+            ),
         ],
         body,
     )
@@ -135,7 +141,10 @@ fn tile_response(body: Vec<u8>, content_type: String, etag: String, by_accept: b
 /// `GET /cesium/layer.json`.
 pub async fn cesium_layer(State(state): State<Arc<AppState>>) -> Result<Response, ApiError> {
     let t = georeferenced(&state)?;
-    let f = t.formats.as_ref().map_err(|e| ApiError::NotFoundWhy(e.clone()))?;
+    let f = t
+        .formats
+        .as_ref()
+        .map_err(|e| ApiError::NotFoundWhy(e.clone()))?;
     Ok(Json(f.cesium.layer_json(t.store.tile_mesh(), t.info.id)).into_response())
 }
 
@@ -147,7 +156,11 @@ pub async fn cesium_tile(
 ) -> Result<Response, ApiError> {
     let t = georeferenced(&state)?;
     let (tile, _) = address(&state, &z, &x, &file, &[".terrain"])?;
-    let layer = &t.formats.as_ref().map_err(|e| ApiError::NotFoundWhy(e.clone()))?.cesium;
+    let layer = &t
+        .formats
+        .as_ref()
+        .map_err(|e| ApiError::NotFoundWhy(e.clone()))?
+        .cesium;
     if !layer.available(tile) {
         return Err(ApiError::NotFoundWhy(format!(
             "tile {}/{}/{} is not available: see \"available\" in layer.json",
@@ -214,7 +227,7 @@ pub struct TileJsonQuery {
 
 /// The encoding named in a path, or 404.
 fn encoding(name: &str) -> Result<Encoding, ApiError> {
-    Encoding::from_name(name).ok_or_else(|| {
+    name.parse::<Encoding>().map_err(|_| {
         ApiError::NotFoundWhy(format!(
             "{name:?} is not an elevation encoding: use terrain-rgb or terrarium"
         ))
@@ -223,8 +236,15 @@ fn encoding(name: &str) -> Result<Encoding, ApiError> {
 
 /// The terrain's Web Mercator layer at `size` pixels.
 fn raster_layer(t: &Terrain, size: u32) -> Result<&RasterLayer, ApiError> {
-    let f = t.formats.as_ref().map_err(|e| ApiError::NotFoundWhy(e.clone()))?;
-    Ok(if size == 512 { &f.raster[1] } else { &f.raster[0] })
+    let f = t
+        .formats
+        .as_ref()
+        .map_err(|e| ApiError::NotFoundWhy(e.clone()))?;
+    Ok(if size == 512 {
+        &f.raster[1]
+    } else {
+        &f.raster[0]
+    })
 }
 
 /// `GET /tiles/{encoding}.json`: the TileJSON of an encoding's tiles.

@@ -49,10 +49,22 @@ pub enum SourceError {
     },
 }
 
-/// The key of a cache entry: what the DEM was and how it is read.
-pub fn cache_key(spec: &str, opts: &LoadOptions) -> u64 {
+/// The key of a cache entry: what the DEM was (each file of a mosaic, in order, with its size
+/// and modification time) and every load option that changes the heights, the spacing or the
+/// georeference.
+pub fn cache_key<S: AsRef<str>>(specs: &[S], opts: &LoadOptions) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
-    spec.hash(&mut h);
+    specs.len().hash(&mut h);
+    for spec in specs {
+        let spec = spec.as_ref();
+        spec.hash(&mut h);
+        if let Ok(m) = std::fs::metadata(spec) {
+            m.len().hash(&mut h);
+            if let Ok(t) = m.modified() {
+                t.hash(&mut h);
+            }
+        }
+    }
     // What changes the heights or the spacing changes the store.
     for v in [
         opts.png.scale,
@@ -66,19 +78,21 @@ pub fn cache_key(spec: &str, opts: &LoadOptions) -> u64 {
     opts.origin
         .map(|(x, y)| (x.to_bits(), y.to_bits()))
         .hash(&mut h);
+    opts.encoding.map(|e| e.name()).hash(&mut h);
+    opts.tile.map(|t| (t.z, t.x, t.y)).hash(&mut h);
     crate::store::format::VERSION.hash(&mut h);
-    if let Ok(m) = std::fs::metadata(spec) {
-        m.len().hash(&mut h);
-        if let Ok(t) = m.modified() {
-            t.hash(&mut h);
-        }
-    }
     h.finish()
 }
 
-/// The cache file for a DEM spec read with `opts`.
-pub fn cached_store_path(cache_dir: &Path, spec: &str, opts: &LoadOptions) -> PathBuf {
-    let stem: String = spec
+/// The cache file for a DEM (or a mosaic: named after its first file and the count of the
+/// others) read with `opts`.
+pub fn cached_store_path<S: AsRef<str>>(
+    cache_dir: &Path,
+    specs: &[S],
+    opts: &LoadOptions,
+) -> PathBuf {
+    let spec = specs.first().map_or("none", |s| s.as_ref());
+    let mut stem: String = spec
         .rsplit('/')
         .next()
         .unwrap_or(spec)
@@ -86,7 +100,10 @@ pub fn cached_store_path(cache_dir: &Path, spec: &str, opts: &LoadOptions) -> Pa
         .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
         .take(40)
         .collect();
-    cache_dir.join(format!("{stem}-{:016x}.relief", cache_key(spec, opts)))
+    if specs.len() > 1 {
+        stem.push_str(&format!("+{}", specs.len() - 1));
+    }
+    cache_dir.join(format!("{stem}-{:016x}.relief", cache_key(specs, opts)))
 }
 
 /// Fails early, before the server listens, for a store file that is not there.
@@ -127,13 +144,14 @@ fn open_cached(path: &Path, scratch: &Path, key: &str) -> Result<Store, String> 
 /// async runtime.
 pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, SourceError> {
     let defaults = LoadOptions::default();
-    let (spec, opts) = match source {
+    let embedded = [dem::EMBEDDED_SPEC.to_string()];
+    let (specs, opts) = match source {
         TerrainSource::Store(p) => return open(p, cache_dir),
-        TerrainSource::Embedded => (dem::EMBEDDED_SPEC, &defaults),
-        TerrainSource::Dem(s, o) => (s.as_str(), o),
+        TerrainSource::Embedded => (&embedded[..], &defaults),
+        TerrainSource::Dem(s, o) => (&s[..], o),
     };
-    let path = cached_store_path(cache_dir, spec, opts);
-    let key = format!("{:016x}", cache_key(spec, opts));
+    let path = cached_store_path(cache_dir, specs, opts);
+    let key = format!("{:016x}", cache_key(specs, opts));
     if path.exists() {
         match open_cached(&path, cache_dir, &key) {
             Ok(s) => {
@@ -149,10 +167,11 @@ pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, S
     })?;
     let d = match source {
         TerrainSource::Embedded => dem::embedded_default()?,
-        _ => dem::load(spec, opts)?,
+        _ => dem::load_all(specs, opts)?,
     };
     tracing::info!(
-        "building the store for {spec} ({}x{} samples) into {}",
+        "building the store for {} ({}x{} samples) into {}",
+        d.source,
         d.width,
         d.height,
         path.display()
@@ -179,7 +198,7 @@ mod tests {
     fn the_embedded_terrain_is_built_once_then_reused() {
         let dir = tempfile::tempdir().unwrap();
         let a = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
-        let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC, &LoadOptions::default());
+        let path = cached_store_path(dir.path(), &[dem::EMBEDDED_SPEC], &LoadOptions::default());
         let before = std::fs::metadata(&path).unwrap().modified().unwrap();
         let b = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
         assert_eq!(a.terrain_id(), b.terrain_id());
@@ -192,7 +211,7 @@ mod tests {
     #[test]
     fn a_corrupt_cache_entry_is_rebuilt() {
         let dir = tempfile::tempdir().unwrap();
-        let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC, &LoadOptions::default());
+        let path = cached_store_path(dir.path(), &[dem::EMBEDDED_SPEC], &LoadOptions::default());
         std::fs::write(&path, b"not a store").unwrap();
         let s = open_terrain(&TerrainSource::Embedded, dir.path()).unwrap();
         assert_eq!(s.geometry().shape.width(), 257);
@@ -202,7 +221,7 @@ mod tests {
     fn a_foreign_store_over_a_cache_entry_is_rebuilt_not_served() {
         // Issue 12: a valid store of another terrain, copied over the cached file's name.
         let dir = tempfile::tempdir().unwrap();
-        let path = cached_store_path(dir.path(), dem::EMBEDDED_SPEC, &LoadOptions::default());
+        let path = cached_store_path(dir.path(), &[dem::EMBEDDED_SPEC], &LoadOptions::default());
         let other = dem::load("synthetic:65:3", &LoadOptions::default()).unwrap();
         preprocess::build_store(&other, &path, &tiles16()).unwrap();
         let foreign_id = Store::open(&path).unwrap().terrain_id();
@@ -249,5 +268,60 @@ mod tests {
             .to_string();
         assert_eq!(e.matches("/nonexistent/x.relief").count(), 2, "{e}");
         assert!(e.contains("relief-server build"), "{e}");
+    }
+
+    #[test]
+    fn the_cache_key_covers_every_input_and_option() {
+        use crate::formats::terrain_rgb::Encoding;
+        use crate::geo::mercator::TileId;
+        let d = LoadOptions::default();
+        let key = |specs: &[&str], o: &LoadOptions| cache_key(specs, o);
+        let base = key(&["a.png"], &d);
+        assert_eq!(base, key(&["a.png"], &d));
+        let variants = [
+            LoadOptions {
+                encoding: Some(Encoding::TerrainRgb),
+                ..d.clone()
+            },
+            LoadOptions {
+                encoding: Some(Encoding::Terrarium),
+                ..d.clone()
+            },
+            LoadOptions {
+                tile: TileId::new(3, 1, 2).ok(),
+                ..d.clone()
+            },
+            LoadOptions {
+                tile: TileId::new(3, 2, 1).ok(),
+                ..d.clone()
+            },
+            LoadOptions {
+                origin: Some((1.0, 2.0)),
+                ..d.clone()
+            },
+        ];
+        let mut keys: Vec<u64> = variants.iter().map(|o| key(&["a.png"], o)).collect();
+        keys.push(base);
+        keys.push(key(&["a.png", "b.png"], &d));
+        keys.push(key(&["b.png", "a.png"], &d));
+        keys.push(key(&["a.pngb.png"], &d));
+        let n = keys.len();
+        keys.sort_unstable();
+        keys.dedup();
+        assert_eq!(keys.len(), n);
+        // A changed file of a mosaic changes the key.
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+        std::fs::write(&a, b"1").unwrap();
+        std::fs::write(&b, b"1").unwrap();
+        let specs = [a.to_str().unwrap(), b.to_str().unwrap()];
+        let before = key(&specs, &d);
+        std::fs::write(&b, b"22").unwrap();
+        assert_ne!(key(&specs, &d), before);
+        let p = cached_store_path(dir.path(), &specs, &d);
+        assert!(
+            p.file_name().unwrap().to_str().unwrap().starts_with("a+1-"),
+            "{p:?}"
+        );
     }
 }

@@ -220,3 +220,96 @@ fn shared_dem_committed_crop_is_the_documented_window_of_the_original() {
         }
     }
 }
+
+/// Issue 14: the `.hgt` reader on a file made from fuji_srtm3, which is SRTM 3" over
+/// 138..139 E, 35..36 N: the same heights, voids, georeference and spacing as the GeoTIFF.
+#[test]
+#[ignore = "needs ../shared/dem"]
+fn shared_dem_fuji_as_hgt_reads_like_the_geotiff() {
+    use crate::formats::hgt::{VOID, to_bytes};
+    let tif = load(
+        &shared("fuji_srtm3/osgearth_mt_fuji_90m.tif"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    assert_eq!((tif.width, tif.height), (1201, 1201));
+    // The GeoTIFF's samples as they were: whole metres, voids -32768.
+    let samples: Vec<i16> = (0..tif.heights.len())
+        .map(|i| {
+            if tif.is_void(i) {
+                VOID
+            } else {
+                let h = tif.heights[i];
+                assert_eq!(h, h.round(), "sample {i}");
+                h as i16
+            }
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("N35E138.hgt");
+    std::fs::write(&p, to_bytes(&samples)).unwrap();
+    let hgt = load(p.to_str().unwrap(), &LoadOptions::default()).unwrap();
+    assert_eq!((hgt.width, hgt.height), (tif.width, tif.height));
+    assert_eq!(hgt.voids.count(), 2437);
+    assert_eq!(hgt.voids, tif.voids);
+    // The same samples, so the same fill.
+    assert_eq!(hgt.heights, tif.heights);
+    assert_eq!(hgt.crs, tif.crs);
+    let (a, b) = (hgt.georef.unwrap(), tif.georef.unwrap());
+    assert_eq!(a.epsg, b.epsg);
+    assert_eq!(a.first, [138.0, 36.0]);
+    for k in 0..2 {
+        assert!((a.first[k] - b.first[k]).abs() < 1e-9, "{a:?} {b:?}");
+        assert!(close(a.step[k], b.step[k], 1e-12), "{a:?} {b:?}");
+    }
+    assert!(
+        close(hgt.spacing_x, tif.spacing_x, 1e-9),
+        "{}",
+        hgt.spacing_x
+    );
+    assert!(
+        close(hgt.spacing_y, tif.spacing_y, 1e-9),
+        "{}",
+        hgt.spacing_y
+    );
+}
+
+/// Issue 14: real heights (a 256 x 256 window of fuji_srtm3 around the summit) written as
+/// terrain-RGB and Terrarium tiles by `terrain_rgb::encode_png` read back by the tile reader
+/// within half the encoding's step.
+#[test]
+#[ignore = "needs ../shared/dem"]
+fn shared_dem_fuji_heights_survive_terrain_tiles() {
+    use crate::formats::terrain_rgb::{Encoding, encode_png};
+    let d = load(
+        &shared("fuji_srtm3/osgearth_mt_fuji_90m.tif"),
+        &LoadOptions::default(),
+    )
+    .unwrap();
+    let (x0, y0, px) = (700u32, 600u32, 256u32);
+    let window: Vec<f32> = (0..px * px)
+        .map(|i| d.at(x0 + i % px, y0 + i / px))
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    for enc in Encoding::ALL {
+        let p = dir.path().join("12-3629-1617.png");
+        std::fs::write(&p, encode_png(px, px, &window, enc)).unwrap();
+        let opts = LoadOptions {
+            encoding: Some(enc),
+            ..LoadOptions::default()
+        };
+        let t = load(p.to_str().unwrap(), &opts).unwrap();
+        assert_eq!(t.voids.count(), 0);
+        let worst = window
+            .iter()
+            .zip(&t.heights)
+            .map(|(a, b)| (a - b).abs() as f64)
+            .fold(0.0, f64::max);
+        assert!(worst <= enc.step() / 2.0 + 1e-3, "{enc}: {worst}");
+        assert_eq!(t.valid_range(), {
+            let lo = window.iter().copied().fold(f32::MAX, f32::min);
+            let hi = window.iter().copied().fold(f32::MIN, f32::max);
+            (lo, hi)
+        });
+    }
+}

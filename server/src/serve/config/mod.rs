@@ -23,10 +23,13 @@ pub struct ServeArgs {
     /// A store built by `relief-server build` [default: the embedded terrain].
     #[arg(long, env = "RELIEF_STORE", conflicts_with = "dem")]
     pub store: Option<PathBuf>,
-    /// A DEM to build a store from on start (cached): GeoTIFF, or `synthetic:SIZE[:SEED]`
-    /// [default: the embedded terrain, a 257x193 crop of Mount Fuji].
-    #[arg(long, env = "RELIEF_DEM")]
-    pub dem: Option<String>,
+    /// A DEM to build a store from on start (cached), in any form `build` reads (GeoTIFF, PNG,
+    /// SRTM .hgt, terrain-RGB or Terrarium tiles with --encoding, `synthetic:SIZE[:SEED]`);
+    /// several files after --dem make a mosaic, as for `build` (RELIEF_DEM holds one spec; the
+    /// TOML file's `dem` one or a list) [default: the embedded terrain, a 257x193 crop of Mount
+    /// Fuji].
+    #[arg(long, env = "RELIEF_DEM", num_args = 1..)]
+    pub dem: Vec<String>,
     /// How to read `--dem` (the same options as `build`; flags only, not in the TOML file).
     #[command(flatten)]
     pub dem_args: crate::dem::DemArgs,
@@ -107,8 +110,8 @@ pub struct ServeArgs {
 pub struct FileConfig {
     /// See [`ServeArgs::store`].
     pub store: Option<PathBuf>,
-    /// See [`ServeArgs::dem`].
-    pub dem: Option<String>,
+    /// See [`ServeArgs::dem`]: one DEM, or a list of files for a mosaic.
+    pub dem: Option<DemSpecs>,
     /// See [`ServeArgs::addr`].
     pub addr: Option<String>,
     /// See [`ServeArgs::cache_dir`].
@@ -145,6 +148,26 @@ pub struct FileConfig {
     pub web_lib: Option<PathBuf>,
 }
 
+/// The TOML file's `dem`: one spec, or a list of files for a mosaic.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum DemSpecs {
+    /// `dem = "N35E138.hgt"`.
+    One(String),
+    /// `dem = ["N35E138.hgt", "N35E139.hgt"]`.
+    Many(Vec<String>),
+}
+
+impl DemSpecs {
+    /// The specs as a list.
+    pub fn into_vec(self) -> Vec<String> {
+        match self {
+            DemSpecs::One(s) => vec![s],
+            DemSpecs::Many(v) => v,
+        }
+    }
+}
+
 /// Which terrain to serve.
 #[derive(Clone, Debug, PartialEq)]
 pub enum TerrainSource {
@@ -152,8 +175,9 @@ pub enum TerrainSource {
     Embedded,
     /// A store file, mapped as it is.
     Store(PathBuf),
-    /// A DEM and how to read it, built into the cache on first start.
-    Dem(String, crate::dem::LoadOptions),
+    /// A DEM (or the files of a mosaic) and how to read it, built into the cache on first
+    /// start.
+    Dem(Vec<String>, crate::dem::LoadOptions),
 }
 
 /// The limits that protect the server from its clients.
@@ -321,7 +345,16 @@ impl ServeArgs {
         };
         let d = Limits::default();
         let store = self.store.clone().or(file.store);
-        let dem = self.dem.clone().or(file.dem);
+        let dem = match (self.dem.is_empty(), file.dem.map(DemSpecs::into_vec)) {
+            (false, _) => Some(self.dem.clone()),
+            (true, Some(d)) if d.is_empty() => {
+                return Err(ConfigError::Invalid(
+                    "dem is an empty list; name a DEM, or leave dem out for the embedded terrain"
+                        .into(),
+                ));
+            }
+            (true, d) => d,
+        };
         let source = match (store, dem) {
             (Some(_), Some(_)) => {
                 return Err(ConfigError::Invalid(

@@ -114,6 +114,49 @@ fn connection_limits_follow_the_session_limits_unless_set() {
 }
 
 #[test]
+fn a_dem_is_one_spec_or_a_mosaic_from_flags_or_the_file() {
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "dem = [\"N35E138.hgt\", \"N35E139.hgt\"]").unwrap();
+    let file = Some(f.path().to_path_buf());
+    let args = ServeArgs {
+        config: file.clone(),
+        ..ServeArgs::default()
+    };
+    let TerrainSource::Dem(specs, _) = args.resolve().unwrap().source else {
+        panic!("not a DEM")
+    };
+    assert_eq!(specs, ["N35E138.hgt", "N35E139.hgt"]);
+    // Flags beat the file.
+    let args = ServeArgs {
+        config: file,
+        dem: vec!["synthetic:65".into()],
+        ..ServeArgs::default()
+    };
+    let TerrainSource::Dem(specs, _) = args.resolve().unwrap().source else {
+        panic!("not a DEM")
+    };
+    assert_eq!(specs, ["synthetic:65"]);
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "dem = \"x.tif\"").unwrap();
+    let args = ServeArgs {
+        config: Some(f.path().to_path_buf()),
+        ..ServeArgs::default()
+    };
+    let TerrainSource::Dem(specs, _) = args.resolve().unwrap().source else {
+        panic!("not a DEM")
+    };
+    assert_eq!(specs, ["x.tif"]);
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "dem = []").unwrap();
+    let args = ServeArgs {
+        config: Some(f.path().to_path_buf()),
+        ..ServeArgs::default()
+    };
+    let e = args.resolve().unwrap_err().to_string();
+    assert!(e.contains("empty list"), "{e}");
+}
+
+#[test]
 fn the_web_lib_comes_from_the_flag_then_the_file_then_the_repository() {
     let c = ServeArgs::default().resolve().unwrap();
     assert_eq!(c.web_lib, PathBuf::from(DEFAULT_WEB_LIB));
