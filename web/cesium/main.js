@@ -86,14 +86,14 @@
     relief.viewer = viewer;
     const scene = viewer.scene;
     // A fixed time, so that the sun (terrain lighting from the vertex normals) is the same on
-    // every load: mid-morning over Japan.
-    viewer.clock.currentTime = Cesium.JulianDate.fromIso8601('2025-05-01T01:00:00Z');
+    // every load: early morning over Japan, a low sun from the east that shades the slopes.
+    viewer.clock.currentTime = Cesium.JulianDate.fromIso8601('2025-05-01T21:30:00Z');
     viewer.clock.shouldAnimate = false;
     scene.globe.enableLighting = true;
     scene.globe.depthTestAgainstTerrain = true;
 
-    // Fly to the terrain's box: from the south-south-east, looking down 35 degrees, far enough
-    // back for the whole box.
+    // Fly to the terrain's box: from the south-south-west, looking down 18 degrees, far enough
+    // back for most of the box.
     const [hmin, hmax] = terrain.height_range_m ?? [0, 0];
     const rectangle = Cesium.Rectangle.fromDegrees(west, south, east, north);
     const sphere = Cesium.BoundingSphere.fromRectangle3D(
@@ -101,7 +101,7 @@
     await new Promise((resolve) => {
       viewer.camera.flyToBoundingSphere(sphere, {
         offset: new Cesium.HeadingPitchRange(
-          Cesium.Math.toRadians(-20), Cesium.Math.toRadians(-35), sphere.radius * 2.4),
+          Cesium.Math.toRadians(-30), Cesium.Math.toRadians(-18), sphere.radius * 1.5),
         duration,
         complete: resolve,
         cancel: resolve,

@@ -1,7 +1,8 @@
 // Relief's MapLibre page: a map in terrain mode over this server's elevation tiles. The style
 // has a background, a `raster-dem` source from the server's TileJSON (/tiles/terrain-rgb.json,
-// or /tiles/terrarium.json with ?encoding=terrarium), a hillshade of that DEM (the imagery,
-// made offline from the terrain itself) and `terrain: {source, exaggeration: 1}`; the camera
+// or /tiles/terrarium.json with ?encoding=terrarium), a hillshade of the same DEM tiles (the
+// imagery, made offline from the terrain itself) and `terrain: {source: 'dem', exaggeration:
+// 1}`; the camera
 // looks at the terrain's box pitched 60 degrees. MapLibre is loaded as an ES module from this
 // server (/lib/maplibre-gl/), and nothing is fetched from any other host.
 //
@@ -96,15 +97,18 @@ async function start() {
     container: 'map',
     style: {
       version: 8,
+      // The same tiles twice: MapLibre draws terrain and hillshade better from separate
+      // sources (it says so in the console otherwise).
       sources: {
         dem: { type: 'raster-dem', url: `/tiles/${encoding}.json` },
+        shade: { type: 'raster-dem', url: `/tiles/${encoding}.json` },
       },
       layers: [
         { id: 'background', type: 'background', paint: { 'background-color': '#e8e4d8' } },
         {
           id: 'hillshade',
           type: 'hillshade',
-          source: 'dem',
+          source: 'shade',
           paint: {
             'hillshade-exaggeration': 0.7,
             'hillshade-shadow-color': '#3d3526',
@@ -115,19 +119,23 @@ async function start() {
       ],
       terrain: { source: 'dem', exaggeration: 1 },
     },
-    bounds: [[west, south], [east, north]],
-    fitBoundsOptions: { padding: 40 },
-    pitch: 60,
-    bearing: -20,
+    center: [(west + east) / 2, (south + north) / 2],
+    zoom: 10,
     maxPitch: 85,
   });
   relief.map = map;
+  // Centred on the terrain's box, close enough for it to fill most of the view once pitched
+  // 60 degrees, looking north-north-east.
+  const fit = map.cameraForBounds([[west, south], [east, north]], { padding: 20 });
+  map.jumpTo({ ...fit, zoom: fit.zoom + 0.5, pitch: 60, bearing: -20 });
+  // `idle` comes once the style, the tiles in view and the frame are done; MapLibre may fire
+  // it in the same frame as `load`, so the listener goes on now, not after `load`.
+  const idle = new Promise((resolve) => map.once('idle', resolve));
   map.on('error', (e) => {
     // Tiles outside the terrain are 404s by design; anything else is worth seeing.
     console.warn('maplibre:', e.error?.message ?? e);
   });
-  await new Promise((resolve) => map.once('load', resolve));
-  await new Promise((resolve) => map.once('idle', resolve));
+  await idle;
   status.textContent = '';
   resolveReady({ ms: Math.round(performance.now() - started) });
 }

@@ -73,13 +73,22 @@ pub fn routes(web_lib: &Path) -> Router<Arc<AppState>> {
         }
     };
     let js = |body: &'static str| {
-        move || async move { text(StatusCode::OK, "text/javascript; charset=utf-8", body.into()) }
+        move || async move {
+            text(
+                StatusCode::OK,
+                "text/javascript; charset=utf-8",
+                body.into(),
+            )
+        }
     };
     Router::new()
         .route("/cesium", get(|| async { Redirect::permanent("/cesium/") }))
         .route("/cesium/", get(page(CESIUM_HTML, CESIUM)))
         .route("/cesium/main.js", get(js(CESIUM_JS)))
-        .route("/maplibre", get(|| async { Redirect::permanent("/maplibre/") }))
+        .route(
+            "/maplibre",
+            get(|| async { Redirect::permanent("/maplibre/") }),
+        )
         .route("/maplibre/", get(page(MAPLIBRE_HTML, MAPLIBRE)))
         .route("/maplibre/main.js", get(js(MAPLIBRE_JS)))
         .nest_service(CESIUM.url, ServeDir::new(web_lib.join(CESIUM.dir)))
@@ -172,7 +181,10 @@ mod tests {
         std::fs::create_dir_all(&lib).unwrap();
         std::fs::write(lib.join(MAPLIBRE.probe), "").unwrap();
         assert!(MAPLIBRE.installed(dir.path()));
-        assert_eq!(escape("<a href=\"x\">&</a>"), "&lt;a href=&quot;x&quot;&gt;&amp;&lt;/a&gt;");
+        assert_eq!(
+            escape("<a href=\"x\">&</a>"),
+            "&lt;a href=&quot;x&quot;&gt;&amp;&lt;/a&gt;"
+        );
     }
 
     #[test]
