@@ -43,6 +43,7 @@ pub fn config(limits: Limits) -> ServeConfig {
         addr: "127.0.0.1:0".parse().expect("address"),
         cache_dir: std::env::temp_dir().join("relief-test-cache"),
         limits,
+        web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
     }
 }
 

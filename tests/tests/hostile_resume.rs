@@ -31,6 +31,7 @@ async fn setup(dir: &std::path::Path) -> (TestServer, Vec<u8>, usize) {
         addr: "127.0.0.1:0".parse().unwrap(),
         cache_dir: dir.join("cache"),
         limits: Limits::default(),
+        web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
     })
     .await;
     let t = server.state.terrain().unwrap();

@@ -173,6 +173,7 @@ async fn serve(mesh: MeshKind) -> (tempfile::TempDir, TestServer) {
         addr: "127.0.0.1:0".parse().unwrap(),
         cache_dir: dir.path().join("cache"),
         limits: Limits::default(),
+        web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
     })
     .await;
     (dir, server)

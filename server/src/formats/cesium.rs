@@ -87,6 +87,12 @@ impl CesiumLayer {
             "maxzoom": self.max_level,
             "bounds": self.bounds.to_array(),
             "extensions": ["octvertexnormals", "metadata"],
+            // CesiumJS takes the `metadata` extension only from a layer that says how many
+            // levels each tile's metadata covers: without this it fails on the first tile
+            // that carries it ("reading 'addAvailableTileRange'", CesiumJS 1.145). With it,
+            // CesiumJS learns availability from the tiles at levels 0, 10, 20 ... and ignores
+            // `available`, which stays for other clients.
+            "metadataAvailability": METADATA_LEVELS,
             "available": available,
             "attribution": "",
         })
@@ -234,6 +240,7 @@ mod tests {
         assert_eq!(j["available"].as_array().unwrap().len(), 13);
         assert_eq!(j["available"][8][0]["startX"], 452);
         assert_eq!(j["scheme"], "tms");
+        assert_eq!(j["metadataAvailability"], METADATA_LEVELS);
         // Metadata lists the next levels' tiles under a tile, cut to the layer.
         let m: serde_json::Value = serde_json::from_str(&l.metadata(TileXyz {
             z: 8,

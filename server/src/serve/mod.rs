@@ -9,6 +9,8 @@
 //! - [`tiles`]: the tile pyramid over HTTP (`/v1/tiles.json`, `/v1/tiles/{z}/{x}/{y}`).
 //! - [`formats`]: the standard formats over HTTP (`/cesium` quantized-mesh, `/tiles`
 //!   terrain-RGB and Terrarium PNGs with TileJSON).
+//! - [`pages`]: the CesiumJS and MapLibre pages (`/cesium/`, `/maplibre/`) and the npm
+//!   libraries they load (`/lib/...`, from `web/node_modules`).
 //! - [`ws`]: the WebSocket upgrade and session admission.
 //! - [`session`]: one session's protocol (hello, welcome, flow, closes), generic over
 //!   `Sink + Stream`.
@@ -24,6 +26,7 @@ pub mod http;
 pub mod limits;
 pub mod listen;
 pub mod metrics;
+pub mod pages;
 pub mod router;
 pub mod session;
 pub mod source;
@@ -84,7 +87,7 @@ impl Server {
         limits.max_connections = listen::fit_connections(limits.max_connections);
         Ok(Server {
             listener,
-            state: Arc::new(AppState::new(limits, rx)),
+            state: Arc::new(AppState::new(limits, rx).with_web_lib(config.web_lib.clone())),
             draining,
             config,
         })
@@ -136,7 +139,9 @@ impl Server {
                 }
             }
         };
-        tracing::info!("listening on http://{}", self.local_addr());
+        let addr = self.local_addr();
+        tracing::info!("listening on http://{addr}");
+        pages::log_start(addr, &self.state.web_lib);
         listen::serve(self.listener, self.state, self.draining, stop).await;
         match failure_rx.try_recv() {
             Ok(e) => Err(e.into()),

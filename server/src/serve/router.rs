@@ -4,7 +4,7 @@
 use super::http::ApiError;
 use super::limits::Refusal;
 use super::state::AppState;
-use super::{formats, http, tiles, ws};
+use super::{formats, http, pages, tiles, ws};
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{Method, header};
@@ -45,6 +45,7 @@ pub fn app(state: Arc<AppState>) -> Router {
         .route("/readyz", get(http::readyz))
         .merge(tile_routes)
         .merge(format_routes)
+        .merge(pages::routes(&state.web_lib))
         .fallback(http::not_found)
         .layer(DefaultBodyLimit::max(
             state.limits.max_message_bytes as usize,

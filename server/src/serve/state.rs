@@ -151,6 +151,8 @@ pub struct AppState {
     /// One-shot computations at once: waiting requests hold no body in memory (it stays in
     /// the socket until their turn), so a flood of them cannot grow the server.
     pub one_shots: tokio::sync::Semaphore,
+    /// Where the pages' npm libraries are (`web/node_modules`; see [`super::pages`]).
+    pub web_lib: std::path::PathBuf,
 }
 
 impl AppState {
@@ -180,7 +182,14 @@ impl AppState {
             one_shots: tokio::sync::Semaphore::new(
                 2 * std::thread::available_parallelism().map_or(2, |n| n.get()),
             ),
+            web_lib: super::config::DEFAULT_WEB_LIB.into(),
         }
+    }
+
+    /// The state with the pages' libraries in `dir` instead of the default.
+    pub fn with_web_lib(mut self, dir: std::path::PathBuf) -> AppState {
+        self.web_lib = dir;
+        self
     }
 
     /// The terrain, once ready.

@@ -13,6 +13,10 @@ use std::time::Duration;
 /// The default listening address.
 pub const DEFAULT_ADDR: &str = "127.0.0.1:8080";
 
+/// The default folder of the pages' npm libraries: `web/node_modules` in the repository the
+/// server was built from, where `npm ci --prefix web` installs them.
+pub const DEFAULT_WEB_LIB: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../web/node_modules");
+
 /// `relief-server serve` options. Each help text states the default.
 #[derive(Clone, Debug, Default, clap::Args)]
 pub struct ServeArgs {
@@ -92,6 +96,12 @@ pub struct ServeArgs {
     /// pass 10 s [default: 1000000].
     #[arg(long, env = "RELIEF_RESUME_NODES_PER_S_PER_IP")]
     pub resume_nodes_per_s_per_ip: Option<f64>,
+    /// The npm packages of the `/cesium/` and `/maplibre/` pages, as `npm ci --prefix web`
+    /// installs them: `/lib/cesium/` serves its `cesium/Build/Cesium` and `/lib/maplibre-gl/`
+    /// its `maplibre-gl/dist` [default: web/node_modules in the repository the server was built
+    /// from].
+    #[arg(long, env = "RELIEF_WEB_LIB")]
+    pub web_lib: Option<PathBuf>,
 }
 
 /// The TOML file: the same options as the flags.
@@ -134,6 +144,8 @@ pub struct FileConfig {
     pub max_openings: Option<u32>,
     /// See [`ServeArgs::resume_nodes_per_s_per_ip`].
     pub resume_nodes_per_s_per_ip: Option<f64>,
+    /// See [`ServeArgs::web_lib`].
+    pub web_lib: Option<PathBuf>,
 }
 
 /// The TOML file's `dem`: one spec, or a list of files for a mosaic.
@@ -234,6 +246,8 @@ pub struct ServeConfig {
     pub cache_dir: PathBuf,
     /// The limits.
     pub limits: Limits,
+    /// Where the pages' npm libraries are (`web/node_modules`).
+    pub web_lib: PathBuf,
 }
 
 /// A configuration that cannot be used.
@@ -457,6 +471,11 @@ impl ServeArgs {
                 .or(file.cache_dir)
                 .unwrap_or_else(default_cache_dir),
             limits,
+            web_lib: self
+                .web_lib
+                .clone()
+                .or(file.web_lib)
+                .unwrap_or_else(|| PathBuf::from(DEFAULT_WEB_LIB)),
         })
     }
 }

@@ -155,3 +155,25 @@ fn a_dem_is_one_spec_or_a_mosaic_from_flags_or_the_file() {
     let e = args.resolve().unwrap_err().to_string();
     assert!(e.contains("empty list"), "{e}");
 }
+
+#[test]
+fn the_web_lib_comes_from_the_flag_then_the_file_then_the_repository() {
+    let c = ServeArgs::default().resolve().unwrap();
+    assert_eq!(c.web_lib, PathBuf::from(DEFAULT_WEB_LIB));
+    assert!(DEFAULT_WEB_LIB.ends_with("/../web/node_modules"));
+    let mut f = tempfile::NamedTempFile::new().unwrap();
+    writeln!(f, "web_lib = \"/srv/relief/node_modules\"").unwrap();
+    let from_file = ServeArgs {
+        config: Some(f.path().to_path_buf()),
+        ..ServeArgs::default()
+    };
+    assert_eq!(
+        from_file.resolve().unwrap().web_lib,
+        PathBuf::from("/srv/relief/node_modules")
+    );
+    let flag = ServeArgs {
+        web_lib: Some("/opt/web".into()),
+        ..from_file
+    };
+    assert_eq!(flag.resolve().unwrap().web_lib, PathBuf::from("/opt/web"));
+}
