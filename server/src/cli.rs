@@ -180,6 +180,26 @@ enum BenchCommand {
         #[command(flatten)]
         dem_args: DemArgs,
     },
+    /// Time the query library on one core (issue 16): rays from the standard path's cameras,
+    /// half grazing (1-5 degrees down), half steep, cast by the max-mip pyramid and by the
+    /// brute-force march in the same run (every answer must agree; the command fails if one
+    /// does not), and heights, HAT/HOT and lines of sight per second.
+    Query {
+        /// The DEM (same forms as `build`'s inputs).
+        #[arg(long, required = true, num_args = 1..)]
+        dem: Vec<String>,
+        /// Rays cast by each method.
+        #[arg(long, default_value_t = 20_000)]
+        rays: usize,
+        /// Height queries timed.
+        #[arg(long, default_value_t = 2_000_000)]
+        heights: usize,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        dem_args: DemArgs,
+    },
 }
 
 /// A tile mesh kind on the command line.
@@ -428,6 +448,32 @@ fn run() -> anyhow::Result<()> {
                 println!("{}", serde_json::to_string(&report)?);
             } else {
                 print_formats(&report);
+            }
+        }
+        Command::Bench {
+            which:
+                BenchCommand::Query {
+                    dem,
+                    rays,
+                    heights,
+                    json,
+                    dem_args,
+                },
+        } => {
+            let d = dem_args.load(&dem).context("cannot load the DEM")?;
+            let opts = crate::bench::query::QueryBenchOptions {
+                rays,
+                heights,
+                ..Default::default()
+            };
+            let report = crate::bench::query::run(&d, &opts)?;
+            print_report(&report, json)?;
+            if report.mismatches > 0 {
+                anyhow::bail!(
+                    "{} of {} rays: the max-mip cast and the brute-force march disagree",
+                    report.mismatches,
+                    report.rays
+                );
             }
         }
         Command::Bench {
