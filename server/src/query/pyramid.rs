@@ -104,8 +104,10 @@ impl Pyramid {
     }
 
     /// Nodes per row and per column at shift `s` (`s` up to [`Pyramid::top_shift`]).
+    #[inline]
     pub fn dims(&self, s: u32) -> (u32, u32) {
-        (self.cells_x.div_ceil(1 << s), self.cells_y.div_ceil(1 << s))
+        let up = |c: u32| ((u64::from(c) + (1u64 << s) - 1) >> s) as u32;
+        (up(self.cells_x), up(self.cells_y))
     }
 
     /// The max of node `(x, y)` at shift `s >= 1`, metres.

@@ -166,6 +166,17 @@ fn axis(o: f64, d: f64, inv: f64, lo: f64, hi: f64) -> (f64, f64) {
     }
 }
 
+/// `ceil(x) - 1`, at least 0: the first of the closed unit intervals `[k, k+1]` holding `x`.
+#[inline]
+fn ceil_minus_one(x: f64) -> u32 {
+    let t = x.max(0.0) as u32;
+    if f64::from(t) < x {
+        t
+    } else {
+        t.saturating_sub(1)
+    }
+}
+
 /// The smallest `s` in `[0, l]` at which `a s^2 + b s + c <= 0`, if any.
 #[inline]
 fn first_root(a: f64, b: f64, c: f64, l: f64) -> Option<f64> {
@@ -180,13 +191,13 @@ fn first_root(a: f64, b: f64, c: f64, l: f64) -> Option<f64> {
         let lo = r1.min(r2);
         let hi = r1.max(r2);
         for r in [lo, hi] {
-            if (0.0..=l).contains(&r) {
+            if r.is_finite() && (0.0..=l).contains(&r) {
                 return Some(r);
             }
         }
     }
     // The root lies at the span's end but rounded a hair past it.
-    ((a * l + b) * l + c <= 0.0).then_some(l)
+    (l.is_finite() && (a * l + b) * l + c <= 0.0).then_some(l)
 }
 
 impl Terrain {
@@ -244,95 +255,157 @@ impl Terrain {
 
     /// The hierarchical traversal (module docs).
     pub(crate) fn cast_grid(&self, r: &GridRay) -> Option<CellHit> {
-        let p = &self.pyramid;
-        let (cx, cy) = self.cells();
-        let mut best: Option<CellHit> = None;
-        // Depth-first, nearest child on top: at most 3 siblings wait per level.
-        let mut stack = [(0u32, 0u32, 0u32); 4 * 33];
-        stack[0] = (p.top_shift(), 0, 0);
+        let top = self.pyramid.top_shift();
+        let mut best = None;
+        if top == 0 {
+            self.try_cell(r, 0, 0, &mut best);
+        } else {
+            self.descend(r, top, 0, 0, (0.0, r.tmax), &mut best);
+        }
+        best
+    }
+
+    /// Tries cell `(i, j)`, keeping the better hit in `best`.
+    #[inline]
+    fn try_cell(&self, r: &GridRay, i: u32, j: u32, best: &mut Option<CellHit>) {
+        if let Some(h) = self.cell_hit(r, i, j)
+            && h.before(best)
+        {
+            *best = Some(h);
+        }
+    }
+
+    /// Searches node `(x, y)` at shift `s >= 1` depth-first over the ray's stretch `seg`,
+    /// keeping the better hit in `best`.
+    fn descend(
+        &self,
+        r: &GridRay,
+        s: u32,
+        x: u32,
+        y: u32,
+        seg: (f64, f64),
+        best: &mut Option<CellHit>,
+    ) {
+        // Depth-first, nearest child on top: at most 3 siblings wait per level. Each entry
+        // passed the slab and max tests when pushed and keeps where its span begins.
+        let mut stack = [(0u32, 0u32, 0u32, 0f64); 4 * 33];
+        let Some(ta) = self.node_entry(r, s, x, y, seg) else {
+            return;
+        };
+        stack[0] = (s, x, y, ta);
         let mut len = 1;
         while len > 0 {
             len -= 1;
-            let (s, x, y) = stack[len];
-            if s == 0 {
-                if let Some(h) = self.cell_hit(r, x, y)
-                    && h.before(&best)
-                {
-                    best = Some(h);
-                }
-                continue;
-            }
-            let u0 = (u64::from(x) << s) as f64;
-            let u1 = ((u64::from(x) + 1) << s).min(u64::from(cx)) as f64;
-            let v0 = (u64::from(y) << s) as f64;
-            let v1 = ((u64::from(y) + 1) << s).min(u64::from(cy)) as f64;
-            let Some((ta, tb)) = r.slab(u0, u1, v0, v1) else {
-                continue;
-            };
+            let (s, x, y, ta) = stack[len];
             if best.is_some_and(|b| ta > b.t) {
                 continue;
             }
-            if r.z(ta).min(r.z(tb)) > f64::from(p.max(s, x, y)) + SKIP_MARGIN {
-                continue;
-            }
-            // Children: near and far in each axis, the middle two by which half-plane the
-            // ray crosses first.
             let cs = s - 1;
-            let (nw, nh) = p.dims(cs);
-            let (x0, y0) = (2 * x, 2 * y);
-            let (nx, fx) = if r.d[0] >= 0.0 {
-                (x0, x0 + 1)
-            } else {
-                (x0 + 1, x0)
-            };
-            let (ny, fy) = if r.d[1] >= 0.0 {
-                (y0, y0 + 1)
-            } else {
-                (y0 + 1, y0)
-            };
-            let um = ((u64::from(x0) + 1) << cs) as f64;
-            let vm = ((u64::from(y0) + 1) << cs) as f64;
-            let tx = if r.d[0] != 0.0 {
-                (um - r.o[0]) * r.inv[0]
-            } else {
-                f64::INFINITY
-            };
-            let ty = if r.d[1] != 0.0 {
-                (vm - r.o[1]) * r.inv[1]
-            } else {
-                f64::INFINITY
-            };
-            let order = if tx <= ty {
-                [(fx, fy), (nx, fy), (fx, ny), (nx, ny)]
-            } else {
-                [(fx, fy), (fx, ny), (nx, fy), (nx, ny)]
-            };
-            for (kx, ky) in order {
-                if kx < nw && ky < nh {
-                    stack[len] = (cs, kx, ky);
+            let (nw, nh) = self.pyramid.dims(cs);
+            let base = len;
+            for (kx, ky) in self.children(r, cs, x, y) {
+                if kx >= nw || ky >= nh {
+                    continue;
+                }
+                if cs == 0 {
+                    self.try_cell(r, kx, ky, best);
+                } else if let Some(t) = self.node_entry(r, cs, kx, ky, seg) {
+                    stack[len] = (cs, kx, ky, t);
                     len += 1;
                 }
             }
+            // Reverse what was just pushed, so that the nearest child is on top.
+            stack[base..len].reverse();
         }
-        best
+    }
+
+    /// Where `r`'s span over node `(x, y)` at shift `s >= 1` within `seg` begins, unless the
+    /// ray misses the node there or stays above its max over that span.
+    #[inline]
+    fn node_entry(&self, r: &GridRay, s: u32, x: u32, y: u32, seg: (f64, f64)) -> Option<f64> {
+        let (cx, cy) = self.cells();
+        let u0 = (u64::from(x) << s) as f64;
+        let u1 = ((u64::from(x) + 1) << s).min(u64::from(cx)) as f64;
+        let v0 = (u64::from(y) << s) as f64;
+        let v1 = ((u64::from(y) + 1) << s).min(u64::from(cy)) as f64;
+        let (ta, tb) = r.slab(u0, u1, v0, v1)?;
+        let (ta, tb) = (ta.max(seg.0), tb.min(seg.1));
+        if ta > tb {
+            return None;
+        }
+        let max = f64::from(self.pyramid.max(s, x, y));
+        (r.z(ta).min(r.z(tb)) <= max + SKIP_MARGIN).then_some(ta)
+    }
+
+    /// The four children at shift `cs` of node `(x, y)` in the order the ray meets them:
+    /// near and far in each axis, the middle two by which half-plane the ray crosses first.
+    #[inline]
+    fn children(&self, r: &GridRay, cs: u32, x: u32, y: u32) -> [(u32, u32); 4] {
+        let (x0, y0) = (2 * x, 2 * y);
+        let (nx, fx) = if r.d[0] >= 0.0 {
+            (x0, x0 + 1)
+        } else {
+            (x0 + 1, x0)
+        };
+        let (ny, fy) = if r.d[1] >= 0.0 {
+            (y0, y0 + 1)
+        } else {
+            (y0 + 1, y0)
+        };
+        let um = ((u64::from(x0) + 1) << cs) as f64;
+        let vm = ((u64::from(y0) + 1) << cs) as f64;
+        let tx = if r.d[0] != 0.0 {
+            (um - r.o[0]) * r.inv[0]
+        } else {
+            f64::INFINITY
+        };
+        let ty = if r.d[1] != 0.0 {
+            (vm - r.o[1]) * r.inv[1]
+        } else {
+            f64::INFINITY
+        };
+        if tx <= ty {
+            [(nx, ny), (fx, ny), (nx, fy), (fx, fy)]
+        } else {
+            [(nx, ny), (nx, fy), (fx, ny), (fx, fy)]
+        }
     }
 
     /// The brute-force march (module docs).
     pub(crate) fn march_grid(&self, r: &GridRay) -> Option<CellHit> {
         let (cx, cy) = self.cells();
-        let (t0, t1) = r.slab(0.0, f64::from(cx), 0.0, f64::from(cy))?;
-        let mut best: Option<CellHit> = None;
-        let span = |o: f64, d: f64, n: u32| {
-            let (a, b) = (o + d * t0, o + d * t1);
-            let lo = (a.min(b).ceil() - 1.0).max(0.0) as u32;
-            let hi = (a.max(b).floor().max(0.0) as u32).min(n - 1);
-            (lo, hi)
+        let span = r.slab(0.0, f64::from(cx), 0.0, f64::from(cy))?;
+        let mut best = None;
+        self.walk(r, 0, span, &mut best, |t, i, j, best| {
+            t.try_cell(r, i, j, best)
+        });
+        best
+    }
+
+    /// Visits in ray order every node at shift `s` (cells for 0) whose closed square the ray
+    /// touches over `(t0, t1)` (within the terrain), column by column, calling `visit`, until
+    /// the next node's span begins after the hit in `best`.
+    fn walk(
+        &self,
+        r: &GridRay,
+        s: u32,
+        (t0, t1): (f64, f64),
+        best: &mut Option<CellHit>,
+        mut visit: impl FnMut(&Self, u32, u32, &mut Option<CellHit>),
+    ) {
+        let (cx, cy) = self.cells();
+        let (nw, nh) = self.pyramid.dims(s);
+        let size = (1u64 << s) as f64;
+        // The nodes whose closed extent meets `[a, b]` along one axis.
+        let span = |a: f64, b: f64, n: u32| {
+            let (lo, hi) = (a.min(b) / size, a.max(b) / size);
+            (ceil_minus_one(lo), (hi.max(0.0) as u32).min(n - 1))
         };
-        let (ilo, ihi) = span(r.o[0], r.d[0], cx);
+        let end = |k: u32, n: u32| ((u64::from(k) + 1) << s).min(u64::from(n)) as f64;
+        let (ilo, ihi) = span(r.o[0] + r.d[0] * t0, r.o[0] + r.d[0] * t1, nw);
         for k in 0..=ihi.saturating_sub(ilo) {
             let i = if r.d[0] >= 0.0 { ilo + k } else { ihi - k };
-            let fi = f64::from(i);
-            let (a0, a1) = axis(r.o[0], r.d[0], r.inv[0], fi, fi + 1.0);
+            let (a0, a1) = axis(r.o[0], r.d[0], r.inv[0], f64::from(i) * size, end(i, cx));
             let (tc0, tc1) = (a0.max(t0), a1.min(t1));
             if tc0 > tc1 {
                 continue;
@@ -341,31 +414,18 @@ impl Terrain {
                 break;
             }
             let (va, vb) = (r.o[1] + r.d[1] * tc0, r.o[1] + r.d[1] * tc1);
-            let jlo = (va.min(vb).ceil() - 1.0).max(0.0) as u32;
-            let jhi = (va.max(vb).floor().max(0.0) as u32).min(cy - 1);
-            let mut visit = |j: u32| {
-                if let Some(b) = best {
-                    let fj = f64::from(j);
-                    let (e0, _) = axis(r.o[1], r.d[1], r.inv[1], fj, fj + 1.0);
-                    if e0.max(tc0) > b.t {
-                        return false;
-                    }
-                }
-                if let Some(h) = self.cell_hit(r, i, j)
-                    && h.before(&best)
-                {
-                    best = Some(h);
-                }
-                true
-            };
+            let (jlo, jhi) = span(va, vb, nh);
             for k in 0..=jhi.saturating_sub(jlo) {
                 let j = if r.d[1] >= 0.0 { jlo + k } else { jhi - k };
-                if !visit(j) {
-                    break;
+                if let Some(b) = best {
+                    let (e0, _) = axis(r.o[1], r.d[1], r.inv[1], f64::from(j) * size, end(j, cy));
+                    if e0.max(tc0) > b.t {
+                        break;
+                    }
                 }
+                visit(self, i, j, best);
             }
         }
-        best
     }
 
     /// Every cell tried, for tests: the exhaustive reference.

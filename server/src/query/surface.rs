@@ -102,8 +102,9 @@ impl Terrain {
             return Err(QueryError::Outside { x, y });
         }
         let (u, v) = (u.clamp(0.0, f64::from(cx)), v.clamp(0.0, f64::from(cy)));
-        let i = (u.floor() as u32).min(cx - 1);
-        let j = (v.floor() as u32).min(cy - 1);
+        // Truncation is the floor here: both are at least 0.
+        let i = (u as u32).min(cx - 1);
+        let j = (v as u32).min(cy - 1);
         Ok(Located {
             i,
             j,

@@ -32,9 +32,14 @@ fn reference_height(w: u32, h: u32, dx: f64, dy: f64, z: &[f32], x: f64, y: f64)
 
 /// A random small DEM: size, spacing and heights (some of them equal, to make flats).
 fn dem() -> impl Strategy<Value = (u32, u32, f64, f64, Vec<f32>)> {
+    dem_up_to(12)
+}
+
+/// A random DEM of fewer than `n` samples a side.
+fn dem_up_to(n: u32) -> impl Strategy<Value = (u32, u32, f64, f64, Vec<f32>)> {
     (
-        2u32..12,
-        2u32..12,
+        2u32..n,
+        2u32..n,
         prop_oneof![Just(1.0), 0.5..30.0],
         0.5..30.0f64,
     )
@@ -119,6 +124,21 @@ proptest! {
                 prop_assert!(p.z > g - 1e-6, "ray under the ground at {p} before its hit {all:?}");
             }
         }
+    }
+
+    /// The same on larger DEMs, where the pyramid is deeper and rays are long.
+    #[test]
+    fn first_hit_matches_on_deeper_pyramids(
+        (t, ray) in dem_up_to(70).prop_flat_map(|(w, h, dx, dy, z)| {
+            let t = terrain(w, h, dx, dy, &z);
+            let (ex, ey) = t.extent();
+            (Just(t), ray_in(ex, ey))
+        })
+    ) {
+        let r = GridRay::new(&t, &ray, 0.0).unwrap();
+        let all = t.exhaustive_grid(&r).map(|h| t.hit(&r, h));
+        same_hit(t.cast(&ray).unwrap(), all)?;
+        same_hit(t.march(&ray).unwrap(), all)?;
     }
 
     /// A line of sight is blocked exactly where dense sampling of the segment first finds it
