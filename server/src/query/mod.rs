@@ -23,8 +23,8 @@
 //! answers the filled ground.
 //!
 //! **Pyramids are built when a [`Terrain`] is made, not stored.** They derive from the
-//! heights in one pass (about 0.1 s and 45 MB for a 4097 x 4097 grid, `bench query` reports
-//! both), while the heights themselves must be copied out of the store's quadtree records
+//! heights in one pass (about 0.2 s on one core and 45 MB for a 4097 x 4097 grid, `bench
+//! query` reports both), while the heights themselves must be copied out of the store's quadtree records
 //! anyway ([`crate::store::Store::heights`]); keeping them in the file would grow every store
 //! and change its format for no faster start.
 

@@ -35,7 +35,8 @@ struct Level {
     w: u32,
     /// The max over each node's samples: what a ray must stay above to skip the node.
     max: Vec<f32>,
-    /// The min over each node's samples: what a segment below which is certainly blocked.
+    /// The min over each node's samples: a segment below it over a node is certainly under
+    /// the ground there (the ray cast needs only the max; callers bound heights over areas).
     min: Vec<f32>,
 }
 

@@ -20,7 +20,15 @@
 //! axis, figure 5). The paper picks a level from the span's projected length (figure 6); here
 //! the pyramid itself picks it: a node is descended only while the ray comes below its max,
 //! which over open ground stops high in the pyramid and near the surface goes down to cells.
-//! The search stops as soon as the next span begins after the best hit so far.
+//! The search stops as soon as the next span begins after the best hit so far. Before it, the
+//! ray's first few cells are tried one by one: a steep ray usually hits there, sooner than a
+//! descent from the root (about 12 levels on a 4097-sample grid) would reach them. The rest of
+//! the ray is searched from the root, each node over its span within that rest only.
+//!
+//! Nodes share their border samples ([`super::pyramid`]), spans are closed, and a node is
+//! skipped only when the ray clears its max by [`SKIP_MARGIN`], far more than the rounding of
+//! the per-cell solution: so no cell that could hold the first hit is ever skipped, and the
+//! property tests check the answer against trying every cell of the grid.
 //!
 //! **The brute force** ([`Terrain::march`]) visits every cell the ray's segment crosses,
 //! column by column in ray order (a DDA over the closed cells, so that cells touched along
@@ -57,6 +65,10 @@ pub struct Hit {
 /// How far above a node's max the ray must stay to skip it, metres: far more than the
 /// rounding of the per-cell solution, far less than any terrain detail.
 const SKIP_MARGIN: f64 = 1e-6;
+
+/// Cells along its major axis that a ray is marched cell by cell before the pyramid is
+/// searched for the rest.
+const NEAR_CELLS: f64 = 6.0;
 
 /// A ray in grid units: `u = x / dx`, `v = y / dy` (rows from the south), `z` in metres, all
 /// against the distance `t` in metres along the unit direction.
@@ -255,12 +267,22 @@ impl Terrain {
 
     /// The hierarchical traversal (module docs).
     pub(crate) fn cast_grid(&self, r: &GridRay) -> Option<CellHit> {
-        let top = self.pyramid.top_shift();
+        let (cx, cy) = self.cells();
+        let (t0, t1) = r.slab(0.0, f64::from(cx), 0.0, f64::from(cy))?;
         let mut best = None;
-        if top == 0 {
-            self.try_cell(r, 0, 0, &mut best);
-        } else {
-            self.descend(r, top, 0, 0, (0.0, r.tmax), &mut best);
+        // The first few cells one by one: a ray that hits there (a steep one) is done
+        // before a descent from the root would have reached it.
+        let per_cell = 1.0 / r.d[0].abs().max(r.d[1].abs());
+        let near = (t0 + NEAR_CELLS * per_cell).min(t1);
+        self.walk(r, 0, (t0, near), &mut best, |t, i, j, best| {
+            t.try_cell(r, i, j, best)
+        });
+        if near >= t1 || best.is_some_and(|b| b.t < near) {
+            return best;
+        }
+        let top = self.pyramid.top_shift();
+        if top > 0 {
+            self.descend(r, top, 0, 0, (near, t1), &mut best);
         }
         best
     }
