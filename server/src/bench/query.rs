@@ -7,6 +7,10 @@
 //! pair of answers must be identical (the report counts the mismatches, and the command fails
 //! if there is any). Throughput (rays/s, heights/s, HAT/HOT/s, lines of sight/s) is timed over
 //! whole batches, without per-query clocks.
+//!
+//! Built with `--features peer-parry`, the same rays are also cast by parry3d's `HeightField`
+//! (the peer of issue 16), built over the same heights; the feature is off by default, so
+//! that the server does not ship parry3d.
 
 use super::stats::{median, quantile};
 use crate::dem::Dem;
@@ -96,6 +100,114 @@ pub struct QueryBenchReport {
     pub los_per_s: f64,
     /// Of those lines of sight, the fraction blocked.
     pub los_blocked_fraction: f64,
+    /// The peer, with `--features peer-parry` (none without).
+    #[serde(flatten)]
+    pub peer: Option<PeerReport>,
+}
+
+/// parry3d's `HeightField` ray cast on the same grid and rays, timed in the same run.
+#[derive(Clone, Debug, Serialize)]
+pub struct PeerReport {
+    /// parry3d's cast time per ray, median, microseconds.
+    pub parry_us_median: f64,
+    /// parry3d's cast time per ray, 99th percentile, microseconds.
+    pub parry_us_p99: f64,
+    /// parry3d's median over the max-mip cast's median.
+    pub parry_over_cast_median: f64,
+    /// parry3d's rays per second, one core, over the whole batch.
+    pub parry_rays_per_s: f64,
+    /// Rays where one hits and the other does not. parry3d meets two triangles per cell
+    /// (a fixed diagonal), not the bilinear patch, so grazing rays may differ.
+    pub parry_hit_disagreements: usize,
+    /// Median over rays both hit of the difference in hit distance, metres.
+    pub parry_distance_diff_m_median: f64,
+}
+
+/// parry3d's height field over a DEM, in parry's frame (y up, centred on the origin).
+#[cfg(feature = "peer-parry")]
+struct Peer {
+    /// The height field: rows along parry's z (our north), columns along x.
+    field: parry3d_f64::shape::HeightField,
+    /// Half the terrain's extent east and north, to centre our coordinates.
+    half: (f64, f64),
+}
+
+#[cfg(feature = "peer-parry")]
+impl Peer {
+    fn new(dem: &Dem) -> Peer {
+        use parry3d_f64::math::Vector;
+        let (w, h) = (dem.width as usize, dem.height as usize);
+        // parry's arrays are column-major; its row i is our i-th row from the south.
+        let mut data = vec![0.0; w * h];
+        for r in 0..h {
+            for c in 0..w {
+                data[(h - 1 - r) + c * h] = f64::from(dem.heights[r * w + c]);
+            }
+        }
+        let ex = (w - 1) as f64 * dem.spacing_x;
+        let ey = (h - 1) as f64 * dem.spacing_y;
+        let heights = parry3d_f64::utils::Array2::new(h, w, data);
+        Peer {
+            field: parry3d_f64::shape::HeightField::new(heights, Vector::new(ex, 1.0, ey)),
+            half: (ex / 2.0, ey / 2.0),
+        }
+    }
+
+    /// The hit distance of `r`, metres.
+    fn cast(&self, r: &Ray) -> Option<f64> {
+        use parry3d_f64::math::Vector;
+        use parry3d_f64::query::RayCast;
+        let u = r.dir.normalize();
+        let o = Vector::new(
+            r.origin.x - self.half.0,
+            r.origin.z,
+            r.origin.y - self.half.1,
+        );
+        let ray = parry3d_f64::query::Ray::new(o, Vector::new(u.x, u.z, u.y));
+        self.field.cast_local_ray(&ray, r.max_dist, true)
+    }
+}
+
+/// The peer's figures on `rays`, against the max-mip cast's median `cast_median` and hits.
+#[cfg(feature = "peer-parry")]
+fn peer(
+    dem: &Dem,
+    rays: &[(Ray, bool)],
+    hits: &[Option<f64>],
+    cast_median: f64,
+) -> Option<PeerReport> {
+    let peer = Peer::new(dem);
+    let (mut us, mut diff, mut disagree) = (Vec::new(), Vec::new(), 0);
+    for ((ray, _), ours) in rays.iter().zip(hits) {
+        let t = Instant::now();
+        let theirs = black_box(peer.cast(black_box(ray)));
+        us.push(t.elapsed().as_secs_f64() * 1e6);
+        match (ours, theirs) {
+            (Some(a), Some(b)) => diff.push((a - b).abs()),
+            (None, None) => {}
+            _ => disagree += 1,
+        }
+    }
+    let t = Instant::now();
+    for (ray, _) in rays {
+        black_box(peer.cast(black_box(ray)));
+    }
+    let per_s = rays.len() as f64 / t.elapsed().as_secs_f64();
+    let m = median(&us);
+    Some(PeerReport {
+        parry_us_median: m,
+        parry_us_p99: quantile(&us, 0.99),
+        parry_over_cast_median: m / cast_median.max(1e-9),
+        parry_rays_per_s: per_s,
+        parry_hit_disagreements: disagree,
+        parry_distance_diff_m_median: median(&diff),
+    })
+}
+
+/// Without `--features peer-parry`: no peer.
+#[cfg(not(feature = "peer-parry"))]
+fn peer(_: &Dem, _: &[(Ray, bool)], _: &[Option<f64>], _: f64) -> Option<PeerReport> {
+    None
 }
 
 /// splitmix64, as a uniform in `[0, 1)`.
@@ -169,6 +281,7 @@ pub fn run(dem: &Dem, opts: &QueryBenchOptions) -> anyhow::Result<QueryBenchRepo
     let (mut cast_us, mut march_us, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
     let (mut graze, mut steep) = ((Vec::new(), Vec::new()), (Vec::new(), Vec::new()));
     let (mut hits, mut mismatches, mut graze_dist) = (0, 0, Vec::new());
+    let mut distances = Vec::with_capacity(rays.len());
     for (ray, grazing) in &rays {
         let a0 = Instant::now();
         let a = black_box(terrain.cast(black_box(ray)))?;
@@ -179,6 +292,7 @@ pub fn run(dem: &Dem, opts: &QueryBenchOptions) -> anyhow::Result<QueryBenchRepo
         if a != b {
             mismatches += 1;
         }
+        distances.push(a.map(|h| h.distance));
         if let Some(h) = a {
             hits += 1;
             if *grazing {
@@ -252,6 +366,7 @@ pub fn run(dem: &Dem, opts: &QueryBenchOptions) -> anyhow::Result<QueryBenchRepo
 
     let cast_median = median(&cast_us);
     let march_median = median(&march_us);
+    let peer = peer(dem, &rays, &distances, cast_median);
     Ok(QueryBenchReport {
         dem: dem.source.clone(),
         width: dem.width,
@@ -280,5 +395,6 @@ pub fn run(dem: &Dem, opts: &QueryBenchOptions) -> anyhow::Result<QueryBenchRepo
         hat_hot_per_s,
         los_per_s,
         los_blocked_fraction: blocked as f64 / pairs.len() as f64,
+        peer,
     })
 }
