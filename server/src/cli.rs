@@ -683,6 +683,50 @@ mod tests {
         assert_eq!(specs, ["a.hgt", "b.hgt"]);
     }
 
+    #[test]
+    fn bench_query_takes_rays_heights_and_json() {
+        let cli = Cli::try_parse_from([
+            "relief-server",
+            "bench",
+            "query",
+            "--dem",
+            "synthetic:65",
+            "--rays",
+            "10",
+            "--json",
+        ])
+        .unwrap();
+        let Command::Bench {
+            which:
+                BenchCommand::Query {
+                    dem,
+                    rays,
+                    heights,
+                    json,
+                    ..
+                },
+        } = cli.command
+        else {
+            panic!("not bench query")
+        };
+        assert_eq!(
+            (dem, rays, heights, json),
+            (vec!["synthetic:65".to_string()], 10, 2_000_000, true)
+        );
+        // The benchmark itself on a small terrain: every ray agrees.
+        let d = crate::dem::DemArgs::default()
+            .load(&["synthetic:65"])
+            .unwrap();
+        let opts = crate::bench::query::QueryBenchOptions {
+            rays: 200,
+            heights: 1000,
+            seed: 1,
+        };
+        let r = crate::bench::query::run(&d, &opts).unwrap();
+        assert_eq!((r.rays, r.mismatches), (200, 0));
+        assert!(r.hits > 0);
+    }
+
     /// `(fractal, flat, rough)` of an `info` command line.
     fn info(args: &[&str]) -> Result<(bool, f32, f32), clap::Error> {
         let cli = Cli::try_parse_from(["relief-server", "info", "t.relief"].iter().chain(args))?;
