@@ -194,6 +194,10 @@ enum BenchCommand {
         /// Height queries timed.
         #[arg(long, default_value_t = 2_000_000)]
         heights: usize,
+        /// Consecutive rays from one camera pose (1: every ray from a random pose, cold
+        /// caches; more: a sensor sweeping from one place).
+        #[arg(long, default_value_t = 1)]
+        rays_per_camera: usize,
         /// Print one JSON object instead of a table.
         #[arg(long)]
         json: bool,
@@ -456,6 +460,7 @@ fn run() -> anyhow::Result<()> {
                     dem,
                     rays,
                     heights,
+                    rays_per_camera,
                     json,
                     dem_args,
                 },
@@ -464,6 +469,7 @@ fn run() -> anyhow::Result<()> {
             let opts = crate::bench::query::QueryBenchOptions {
                 rays,
                 heights,
+                rays_per_camera,
                 ..Default::default()
             };
             let report = crate::bench::query::run(&d, &opts)?;
@@ -721,6 +727,7 @@ mod tests {
             rays: 200,
             heights: 1000,
             seed: 1,
+            rays_per_camera: 10,
         };
         let r = crate::bench::query::run(&d, &opts).unwrap();
         assert_eq!((r.rays, r.mismatches), (200, 0));

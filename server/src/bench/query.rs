@@ -30,6 +30,9 @@ pub struct QueryBenchOptions {
     pub heights: usize,
     /// Seed of the random rays and points.
     pub seed: u64,
+    /// Consecutive rays cast from one camera (1: each ray from a random pose), as a sensor
+    /// sweeping from one place would: the caches then hold what the camera's rays share.
+    pub rays_per_camera: usize,
 }
 
 impl Default for QueryBenchOptions {
@@ -38,6 +41,7 @@ impl Default for QueryBenchOptions {
             rays: 20_000,
             heights: 2_000_000,
             seed: 16,
+            rays_per_camera: 1,
         }
     }
 }
@@ -59,6 +63,8 @@ pub struct QueryBenchReport {
     pub heights_bytes: usize,
     /// Rays cast by each method.
     pub rays: usize,
+    /// Consecutive rays from one camera.
+    pub rays_per_camera: usize,
     /// Of those, rays that hit the ground.
     pub hits: usize,
     /// Rays whose max-mip and brute-force answers differ (must be 0).
@@ -248,9 +254,13 @@ pub fn run(dem: &Dem, opts: &QueryBenchOptions) -> anyhow::Result<QueryBenchRepo
     let mut rng = Rng(opts.seed);
     let half_fov = (30f64.to_radians().tan() * 16.0 / 9.0).atan();
     let max_dist = (ex * ex + ey * ey).sqrt();
+    let per_camera = opts.rays_per_camera.max(1);
+    let mut cam = &cams[0];
     let rays: Vec<(Ray, bool)> = (0..opts.rays.max(2))
         .map(|k| {
-            let cam = &cams[(rng.next() * cams.len() as f64) as usize % cams.len()];
+            if k % per_camera == 0 {
+                cam = &cams[(rng.next() * cams.len() as f64) as usize % cams.len()];
+            }
             let grazing = k % 2 == 0;
             let pitch = if grazing {
                 -rng.range(1.0, 5.0)
@@ -375,6 +385,7 @@ pub fn run(dem: &Dem, opts: &QueryBenchOptions) -> anyhow::Result<QueryBenchRepo
         pyramid_bytes: terrain.pyramid().bytes(),
         heights_bytes: terrain.bytes() - terrain.pyramid().bytes(),
         rays: rays.len(),
+        rays_per_camera: per_camera,
         hits,
         mismatches,
         cast_us_median: cast_median,
