@@ -180,6 +180,30 @@ enum BenchCommand {
         #[command(flatten)]
         dem_args: DemArgs,
     },
+    /// Time the query library on one core (issue 16): rays from the standard path's cameras,
+    /// half grazing (1-5 degrees down), half steep, cast by the max-mip pyramid and by the
+    /// brute-force march in the same run (every answer must agree; the command fails if one
+    /// does not), and heights, HAT/HOT and lines of sight per second.
+    Query {
+        /// The DEM (same forms as `build`'s inputs).
+        #[arg(long, required = true, num_args = 1..)]
+        dem: Vec<String>,
+        /// Rays cast by each method.
+        #[arg(long, default_value_t = 20_000)]
+        rays: usize,
+        /// Height queries timed.
+        #[arg(long, default_value_t = 2_000_000)]
+        heights: usize,
+        /// Consecutive rays from one camera pose (1: every ray from a random pose, cold
+        /// caches; more: a sensor sweeping from one place).
+        #[arg(long, default_value_t = 1)]
+        rays_per_camera: usize,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        dem_args: DemArgs,
+    },
 }
 
 /// A tile mesh kind on the command line.
@@ -431,6 +455,34 @@ fn run() -> anyhow::Result<()> {
             }
         }
         Command::Bench {
+            which:
+                BenchCommand::Query {
+                    dem,
+                    rays,
+                    heights,
+                    rays_per_camera,
+                    json,
+                    dem_args,
+                },
+        } => {
+            let d = dem_args.load(&dem).context("cannot load the DEM")?;
+            let opts = crate::bench::query::QueryBenchOptions {
+                rays,
+                heights,
+                rays_per_camera,
+                ..Default::default()
+            };
+            let report = crate::bench::query::run(&d, &opts)?;
+            print_report(&report, json)?;
+            if report.mismatches > 0 {
+                anyhow::bail!(
+                    "{} of {} rays: the max-mip cast and the brute-force march disagree",
+                    report.mismatches,
+                    report.rays
+                );
+            }
+        }
+        Command::Bench {
             which: BenchCommand::Lod { run },
         } => {
             let d = run.load()?;
@@ -635,6 +687,51 @@ mod tests {
             panic!("not a DEM")
         };
         assert_eq!(specs, ["a.hgt", "b.hgt"]);
+    }
+
+    #[test]
+    fn bench_query_takes_rays_heights_and_json() {
+        let cli = Cli::try_parse_from([
+            "relief-server",
+            "bench",
+            "query",
+            "--dem",
+            "synthetic:65",
+            "--rays",
+            "10",
+            "--json",
+        ])
+        .unwrap();
+        let Command::Bench {
+            which:
+                BenchCommand::Query {
+                    dem,
+                    rays,
+                    heights,
+                    json,
+                    ..
+                },
+        } = cli.command
+        else {
+            panic!("not bench query")
+        };
+        assert_eq!(
+            (dem, rays, heights, json),
+            (vec!["synthetic:65".to_string()], 10, 2_000_000, true)
+        );
+        // The benchmark itself on a small terrain: every ray agrees.
+        let d = crate::dem::DemArgs::default()
+            .load(&["synthetic:65"])
+            .unwrap();
+        let opts = crate::bench::query::QueryBenchOptions {
+            rays: 200,
+            heights: 1000,
+            seed: 1,
+            rays_per_camera: 10,
+        };
+        let r = crate::bench::query::run(&d, &opts).unwrap();
+        assert_eq!((r.rays, r.mismatches), (200, 0));
+        assert!(r.hits > 0);
     }
 
     /// `(fractal, flat, rough)` of an `info` command line.

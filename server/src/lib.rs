@@ -6,6 +6,7 @@
 //! - [`store`]: the preprocessed vertex-quadtree store: build, file format, memory-mapped reader.
 //! - [`preprocess`]: a DEM in, a store out.
 //! - [`lod`]: the LOD engines (vertex stream today) and pixel-error measurement.
+//! - [`query`]: terrain queries (paper 004): heights, normals, rays, lines of sight, HAT/HOT.
 //! - [`bench`]: in-process benchmarks.
 //! - [`cli`]: the `relief-server` command line.
 //! - [`serve`]: the streaming server: WebSocket sessions, HTTP API, limits, metrics, drain.
@@ -25,5 +26,6 @@ pub mod formats;
 pub mod geo;
 pub mod lod;
 pub mod preprocess;
+pub mod query;
 pub mod serve;
 pub mod store;

@@ -5,11 +5,13 @@
 //! - [`tiles`]: the tile stream over the same paths, with patches, skirts or nothing.
 //! - [`compare`]: every stream at the same measured error.
 //! - [`formats`]: the standard formats' tiles over a whole terrain: bytes and making time.
+//! - [`query`]: the query library: max-mip rays against brute force, heights, HAT/HOT, sight.
 //! - [`stats`]: medians and quantiles.
 pub mod compare;
 pub mod flight;
 pub mod formats;
 pub mod lod;
+pub mod query;
 pub mod stats;
 pub mod tiles;
 

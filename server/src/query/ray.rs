@@ -1,0 +1,469 @@
+//! The first hit of a ray on the surface, by paper 004's multi-level ray tracing (section
+//! "Визуализация", figures 5 and 6) over the max-mip pyramid, and by a brute-force
+//! cell-by-cell march that checks it.
+//!
+//! **What a hit is.** A ray is `origin + t * unit(dir)` for `t` in `[0, max_dist]` metres. Its
+//! first hit is the smallest `t` at which the ray is on or below the surface
+//! ([`super::surface`]) over the terrain: so a ray whose origin is on or under the ground hits
+//! at distance 0, a ray that enters the terrain's extent from the side below the surface hits
+//! where it enters, and outside the extent there is no ground to hit. Horizontal and vertical
+//! rays, rays along cell edges and through vertices need no special case: every cell whose
+//! closed square the ray touches is a candidate, each answers the smallest `t` at which the
+//! ray meets its patch (a quadratic in `t`, solved in closed form), and the first hit is the
+//! smallest answer, ties going to the southmost, then westmost cell. Both traversals below
+//! evaluate the same per-cell function on the same cells, so they return identical hits.
+//!
+//! **The paper's traversal** subdivides the ray's span along the pyramid: the span over a
+//! node is the ray's slab interval through the node's square; if the ray's height over that
+//! span (its lower end, the ray being straight) stays above the node's max, the whole node is
+//! skipped; otherwise its four children are visited nearest first (binary subdivision in each
+//! axis, figure 5). The paper picks a level from the span's projected length (figure 6); here
+//! the pyramid itself picks it: a node is descended only while the ray comes below its max,
+//! which over open ground stops high in the pyramid and near the surface goes down to cells.
+//! The search stops as soon as the next span begins after the best hit so far. Before it, the
+//! ray's first few cells are tried one by one: a steep ray usually hits there, sooner than a
+//! descent from the root (about 12 levels on a 4097-sample grid) would reach them. The rest of
+//! the ray is searched from the root, each node over its span within that rest only.
+//!
+//! Nodes share their border samples ([`super::pyramid`]), spans are closed, and a node is
+//! skipped only when the ray clears its max by [`SKIP_MARGIN`], far more than the rounding of
+//! the per-cell solution: so no cell that could hold the first hit is ever skipped, and the
+//! property tests check the answer against trying every cell of the grid.
+//!
+//! **The brute force** ([`Terrain::march`]) visits every cell the ray's segment crosses,
+//! column by column in ray order (a DDA over the closed cells, so that cells touched along
+//! an edge or at a vertex are visited too), and stops at the first hit likewise.
+
+use super::surface::{Corners, patch_height, patch_normal};
+use super::{QueryError, Terrain};
+use glam::DVec3;
+
+/// A ray: where it starts, where it goes, and how far it is followed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    /// Start, world metres.
+    pub origin: DVec3,
+    /// Direction, any non-zero length.
+    pub dir: DVec3,
+    /// How far along the ray to look, metres (`f64::INFINITY`: to the terrain's end).
+    pub max_dist: f64,
+}
+
+/// Where a ray first meets the ground.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// The hit point, world metres.
+    pub point: DVec3,
+    /// Distance from the ray's origin, metres.
+    pub distance: f64,
+    /// The surface's unit upward normal there.
+    pub normal: DVec3,
+    /// The cell hit, as `[col, row]` of its north-west corner sample (row 0 north).
+    pub cell: [u32; 2],
+}
+
+/// How far above a node's max the ray must stay to skip it, metres: far more than the
+/// rounding of the per-cell solution, far less than any terrain detail.
+const SKIP_MARGIN: f64 = 1e-6;
+
+/// Cells along its major axis that a ray is marched cell by cell before the pyramid is
+/// searched for the rest.
+const NEAR_CELLS: f64 = 6.0;
+
+/// A ray in grid units: `u = x / dx`, `v = y / dy` (rows from the south), `z` in metres, all
+/// against the distance `t` in metres along the unit direction.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GridRay {
+    /// Origin `(u, v, z)`; `z` lowered by the clearance for lines of sight.
+    o: [f64; 3],
+    /// Change of `(u, v, z)` per metre along the ray; `u` or `v` 0 when it does not change.
+    d: [f64; 3],
+    /// `1 / d[0]` and `1 / d[1]` (unused where `d` is 0).
+    inv: [f64; 2],
+    /// The ray's length, metres.
+    tmax: f64,
+    /// Origin in world metres, for the hit point.
+    origin: DVec3,
+    /// Unit direction in world metres, for the hit point.
+    unit: DVec3,
+}
+
+/// A hit on one cell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct CellHit {
+    /// Distance along the ray, metres.
+    pub t: f64,
+    /// Cell column.
+    pub i: u32,
+    /// Cell row from the south.
+    pub j: u32,
+}
+
+impl CellHit {
+    /// Whether `self` comes before `other`: nearer, or as near and southmost, then westmost.
+    #[inline]
+    fn before(&self, other: &Option<CellHit>) -> bool {
+        match other {
+            None => true,
+            Some(o) => (self.t, self.j, self.i) < (o.t, o.j, o.i),
+        }
+    }
+}
+
+impl GridRay {
+    /// `ray` on `terrain`'s grid, its height lowered by `lower` metres.
+    pub(crate) fn new(terrain: &Terrain, ray: &Ray, lower: f64) -> Result<GridRay, QueryError> {
+        if !(ray.origin.is_finite() && ray.dir.is_finite()) || ray.max_dist.is_nan() {
+            return Err(QueryError::NotFinite);
+        }
+        if ray.max_dist < 0.0 {
+            return Err(QueryError::Negative(ray.max_dist));
+        }
+        let big = ray.dir.abs().max_element();
+        if big == 0.0 {
+            return Err(QueryError::ZeroDirection);
+        }
+        let unit = (ray.dir / big).normalize();
+        let (mut du, mut dv) = (unit.x / terrain.dx, unit.y / terrain.dy);
+        let (mut iu, mut iv) = (1.0 / du, 1.0 / dv);
+        if !iu.is_finite() {
+            (du, iu) = (0.0, 0.0);
+        }
+        if !iv.is_finite() {
+            (dv, iv) = (0.0, 0.0);
+        }
+        Ok(GridRay {
+            o: [
+                ray.origin.x / terrain.dx,
+                ray.origin.y / terrain.dy,
+                ray.origin.z - lower,
+            ],
+            d: [du, dv, unit.z],
+            inv: [iu, iv],
+            tmax: ray.max_dist,
+            origin: ray.origin,
+            unit,
+        })
+    }
+
+    /// The closed interval of `t` in `[0, tmax]` over which the ray lies in the square
+    /// `[u0, u1] x [v0, v1]`, if any.
+    #[inline]
+    fn slab(&self, u0: f64, u1: f64, v0: f64, v1: f64) -> Option<(f64, f64)> {
+        let (a0, a1) = axis(self.o[0], self.d[0], self.inv[0], u0, u1);
+        let (b0, b1) = axis(self.o[1], self.d[1], self.inv[1], v0, v1);
+        let ta = a0.max(b0).max(0.0);
+        let tb = a1.min(b1).min(self.tmax);
+        (ta <= tb).then_some((ta, tb))
+    }
+
+    /// The ray's height at `t`.
+    #[inline]
+    fn z(&self, t: f64) -> f64 {
+        self.o[2] + self.d[2] * t
+    }
+}
+
+/// The interval of `t` over which `o + d t` lies in `[lo, hi]` (everything or nothing when `d`
+/// is 0).
+#[inline]
+fn axis(o: f64, d: f64, inv: f64, lo: f64, hi: f64) -> (f64, f64) {
+    if d != 0.0 {
+        let (a, b) = ((lo - o) * inv, (hi - o) * inv);
+        if a <= b { (a, b) } else { (b, a) }
+    } else if o >= lo && o <= hi {
+        (f64::NEG_INFINITY, f64::INFINITY)
+    } else {
+        (f64::INFINITY, f64::NEG_INFINITY)
+    }
+}
+
+/// `ceil(x) - 1`, at least 0: the first of the closed unit intervals `[k, k+1]` holding `x`.
+#[inline]
+fn ceil_minus_one(x: f64) -> u32 {
+    let t = x.max(0.0) as u32;
+    if f64::from(t) < x {
+        t
+    } else {
+        t.saturating_sub(1)
+    }
+}
+
+/// The smallest `s` in `[0, l]` at which `a s^2 + b s + c <= 0`, if any.
+#[inline]
+fn first_root(a: f64, b: f64, c: f64, l: f64) -> Option<f64> {
+    if c <= 0.0 {
+        return Some(0.0);
+    }
+    let disc = b * b - 4.0 * a * c;
+    if disc >= 0.0 {
+        // The stable pair of roots: no cancellation whatever the signs.
+        let q = -0.5 * (b + b.signum() * disc.sqrt());
+        let (r1, r2) = (q / a, c / q);
+        let lo = r1.min(r2);
+        let hi = r1.max(r2);
+        for r in [lo, hi] {
+            if r.is_finite() && (0.0..=l).contains(&r) {
+                return Some(r);
+            }
+        }
+    }
+    // The root lies at the span's end but rounded a hair past it.
+    (l.is_finite() && (a * l + b) * l + c <= 0.0).then_some(l)
+}
+
+impl Terrain {
+    /// The first hit of `ray` by the paper's hierarchical traversal of the max-mip pyramid.
+    pub fn cast(&self, ray: &Ray) -> Result<Option<Hit>, QueryError> {
+        let r = GridRay::new(self, ray, 0.0)?;
+        Ok(self.cast_grid(&r).map(|h| self.hit(&r, h)))
+    }
+
+    /// The first hit of `ray` by the brute-force march over every cell it crosses: the
+    /// reference [`Terrain::cast`] is checked against, and the baseline it is measured with.
+    pub fn march(&self, ray: &Ray) -> Result<Option<Hit>, QueryError> {
+        let r = GridRay::new(self, ray, 0.0)?;
+        Ok(self.march_grid(&r).map(|h| self.hit(&r, h)))
+    }
+
+    /// The world hit of cell hit `h` on `r`: the point on the ray (not lowered).
+    pub(crate) fn hit(&self, r: &GridRay, h: CellHit) -> Hit {
+        let (u, v) = (r.o[0] + r.d[0] * h.t, r.o[1] + r.d[1] * h.t);
+        let a = (u - f64::from(h.i)).clamp(0.0, 1.0);
+        let b = (v - f64::from(h.j)).clamp(0.0, 1.0);
+        let c = self.corners(h.i, h.j);
+        Hit {
+            point: r.origin + r.unit * h.t,
+            distance: h.t,
+            normal: patch_normal(&c, a, b, self.dx, self.dy),
+            cell: [h.i, self.height - 2 - h.j],
+        }
+    }
+
+    /// Where `r` first meets the patch of cell `(i, j)`, if it does: a pure function of the
+    /// ray and the cell, so that every traversal gets the same answer from the same cell.
+    #[inline]
+    pub(crate) fn cell_hit(&self, r: &GridRay, i: u32, j: u32) -> Option<CellHit> {
+        let (fi, fj) = (f64::from(i), f64::from(j));
+        let (ta, tb) = r.slab(fi, fi + 1.0, fj, fj + 1.0)?;
+        let c: Corners = self.corners(i, j);
+        let top = c[0].max(c[1]).max(c[2]).max(c[3]);
+        let (z0, z1) = (r.z(ta), r.z(tb));
+        if z0.min(z1) > top + SKIP_MARGIN {
+            return None;
+        }
+        let a0 = (r.o[0] + r.d[0] * ta - fi).clamp(0.0, 1.0);
+        let b0 = (r.o[1] + r.d[1] * ta - fj).clamp(0.0, 1.0);
+        let [h00, h10, h01, h11] = c;
+        let (e1, e2, e3) = (h10 - h00, h01 - h00, h00 - h10 - h01 + h11);
+        let [du, dv, dz] = r.d;
+        // f(s) = ray height - patch height at t = ta + s: a quadratic in s.
+        let qc = z0 - patch_height(&c, a0, b0);
+        let qb = dz - e1 * du - e2 * dv - e3 * (a0 * dv + b0 * du);
+        let qa = -e3 * du * dv;
+        let s = first_root(qa, qb, qc, tb - ta)?;
+        Some(CellHit { t: ta + s, i, j })
+    }
+
+    /// The hierarchical traversal (module docs).
+    pub(crate) fn cast_grid(&self, r: &GridRay) -> Option<CellHit> {
+        let (cx, cy) = self.cells();
+        let (t0, t1) = r.slab(0.0, f64::from(cx), 0.0, f64::from(cy))?;
+        let mut best = None;
+        // The first few cells one by one: a ray that hits there (a steep one) is done
+        // before a descent from the root would have reached it.
+        let per_cell = 1.0 / r.d[0].abs().max(r.d[1].abs());
+        let near = (t0 + NEAR_CELLS * per_cell).min(t1);
+        self.walk(r, 0, (t0, near), &mut best, |t, i, j, best| {
+            t.try_cell(r, i, j, best)
+        });
+        if near >= t1 || best.is_some_and(|b| b.t < near) {
+            return best;
+        }
+        let top = self.pyramid.top_shift();
+        if top > 0 {
+            self.descend(r, top, 0, 0, (near, t1), &mut best);
+        }
+        best
+    }
+
+    /// Tries cell `(i, j)`, keeping the better hit in `best`.
+    #[inline]
+    fn try_cell(&self, r: &GridRay, i: u32, j: u32, best: &mut Option<CellHit>) {
+        if let Some(h) = self.cell_hit(r, i, j)
+            && h.before(best)
+        {
+            *best = Some(h);
+        }
+    }
+
+    /// Searches node `(x, y)` at shift `s >= 1` depth-first over the ray's stretch `seg`,
+    /// keeping the better hit in `best`.
+    fn descend(
+        &self,
+        r: &GridRay,
+        s: u32,
+        x: u32,
+        y: u32,
+        seg: (f64, f64),
+        best: &mut Option<CellHit>,
+    ) {
+        // Depth-first, nearest child on top: at most 3 siblings wait per level. Each entry
+        // passed the slab and max tests when pushed and keeps where its span begins.
+        let mut stack = [(0u32, 0u32, 0u32, 0f64); 4 * 33];
+        let Some(ta) = self.node_entry(r, s, x, y, seg) else {
+            return;
+        };
+        stack[0] = (s, x, y, ta);
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let (s, x, y, ta) = stack[len];
+            if best.is_some_and(|b| ta > b.t) {
+                continue;
+            }
+            let cs = s - 1;
+            let (nw, nh) = self.pyramid.dims(cs);
+            let base = len;
+            for (kx, ky) in self.children(r, cs, x, y) {
+                if kx >= nw || ky >= nh {
+                    continue;
+                }
+                if cs == 0 {
+                    self.try_cell(r, kx, ky, best);
+                } else if let Some(t) = self.node_entry(r, cs, kx, ky, seg) {
+                    stack[len] = (cs, kx, ky, t);
+                    len += 1;
+                }
+            }
+            // Reverse what was just pushed, so that the nearest child is on top.
+            stack[base..len].reverse();
+        }
+    }
+
+    /// Where `r`'s span over node `(x, y)` at shift `s >= 1` within `seg` begins, unless the
+    /// ray misses the node there or stays above its max over that span.
+    #[inline]
+    fn node_entry(&self, r: &GridRay, s: u32, x: u32, y: u32, seg: (f64, f64)) -> Option<f64> {
+        let (cx, cy) = self.cells();
+        let u0 = (u64::from(x) << s) as f64;
+        let u1 = ((u64::from(x) + 1) << s).min(u64::from(cx)) as f64;
+        let v0 = (u64::from(y) << s) as f64;
+        let v1 = ((u64::from(y) + 1) << s).min(u64::from(cy)) as f64;
+        let (ta, tb) = r.slab(u0, u1, v0, v1)?;
+        let (ta, tb) = (ta.max(seg.0), tb.min(seg.1));
+        if ta > tb {
+            return None;
+        }
+        let max = f64::from(self.pyramid.max(s, x, y));
+        (r.z(ta).min(r.z(tb)) <= max + SKIP_MARGIN).then_some(ta)
+    }
+
+    /// The four children at shift `cs` of node `(x, y)` in the order the ray meets them:
+    /// near and far in each axis, the middle two by which half-plane the ray crosses first.
+    #[inline]
+    fn children(&self, r: &GridRay, cs: u32, x: u32, y: u32) -> [(u32, u32); 4] {
+        let (x0, y0) = (2 * x, 2 * y);
+        let (nx, fx) = if r.d[0] >= 0.0 {
+            (x0, x0 + 1)
+        } else {
+            (x0 + 1, x0)
+        };
+        let (ny, fy) = if r.d[1] >= 0.0 {
+            (y0, y0 + 1)
+        } else {
+            (y0 + 1, y0)
+        };
+        let um = ((u64::from(x0) + 1) << cs) as f64;
+        let vm = ((u64::from(y0) + 1) << cs) as f64;
+        let tx = if r.d[0] != 0.0 {
+            (um - r.o[0]) * r.inv[0]
+        } else {
+            f64::INFINITY
+        };
+        let ty = if r.d[1] != 0.0 {
+            (vm - r.o[1]) * r.inv[1]
+        } else {
+            f64::INFINITY
+        };
+        if tx <= ty {
+            [(nx, ny), (fx, ny), (nx, fy), (fx, fy)]
+        } else {
+            [(nx, ny), (nx, fy), (fx, ny), (fx, fy)]
+        }
+    }
+
+    /// The brute-force march (module docs).
+    pub(crate) fn march_grid(&self, r: &GridRay) -> Option<CellHit> {
+        let (cx, cy) = self.cells();
+        let span = r.slab(0.0, f64::from(cx), 0.0, f64::from(cy))?;
+        let mut best = None;
+        self.walk(r, 0, span, &mut best, |t, i, j, best| {
+            t.try_cell(r, i, j, best)
+        });
+        best
+    }
+
+    /// Visits in ray order every node at shift `s` (cells for 0) whose closed square the ray
+    /// touches over `(t0, t1)` (within the terrain), column by column, calling `visit`, until
+    /// the next node's span begins after the hit in `best`.
+    fn walk(
+        &self,
+        r: &GridRay,
+        s: u32,
+        (t0, t1): (f64, f64),
+        best: &mut Option<CellHit>,
+        mut visit: impl FnMut(&Self, u32, u32, &mut Option<CellHit>),
+    ) {
+        let (cx, cy) = self.cells();
+        let (nw, nh) = self.pyramid.dims(s);
+        let size = (1u64 << s) as f64;
+        // The nodes whose closed extent meets `[a, b]` along one axis.
+        let span = |a: f64, b: f64, n: u32| {
+            let (lo, hi) = (a.min(b) / size, a.max(b) / size);
+            (ceil_minus_one(lo), (hi.max(0.0) as u32).min(n - 1))
+        };
+        let end = |k: u32, n: u32| ((u64::from(k) + 1) << s).min(u64::from(n)) as f64;
+        let (ilo, ihi) = span(r.o[0] + r.d[0] * t0, r.o[0] + r.d[0] * t1, nw);
+        for k in 0..=ihi.saturating_sub(ilo) {
+            let i = if r.d[0] >= 0.0 { ilo + k } else { ihi - k };
+            let (a0, a1) = axis(r.o[0], r.d[0], r.inv[0], f64::from(i) * size, end(i, cx));
+            let (tc0, tc1) = (a0.max(t0), a1.min(t1));
+            if tc0 > tc1 {
+                continue;
+            }
+            if best.is_some_and(|b| tc0 > b.t) {
+                break;
+            }
+            let (va, vb) = (r.o[1] + r.d[1] * tc0, r.o[1] + r.d[1] * tc1);
+            let (jlo, jhi) = span(va, vb, nh);
+            for k in 0..=jhi.saturating_sub(jlo) {
+                let j = if r.d[1] >= 0.0 { jlo + k } else { jhi - k };
+                if let Some(b) = best {
+                    let (e0, _) = axis(r.o[1], r.d[1], r.inv[1], f64::from(j) * size, end(j, cy));
+                    if e0.max(tc0) > b.t {
+                        break;
+                    }
+                }
+                visit(self, i, j, best);
+            }
+        }
+    }
+
+    /// Every cell tried, for tests: the exhaustive reference.
+    #[cfg(test)]
+    pub(crate) fn exhaustive_grid(&self, r: &GridRay) -> Option<CellHit> {
+        let (cx, cy) = self.cells();
+        let mut best = None;
+        for j in 0..cy {
+            for i in 0..cx {
+                if let Some(h) = self.cell_hit(r, i, j)
+                    && h.before(&best)
+                {
+                    best = Some(h);
+                }
+            }
+        }
+        best
+    }
+}
