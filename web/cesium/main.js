@@ -11,130 +11,99 @@
 // - `viewer`, `terrainProvider`, `terrain` (the server's /v1/terrain);
 // - `sample(points)`: heights of CesiumJS's most detailed terrain at [lon, lat] points
 //   (degrees), through `sampleTerrainMostDetailed`, in metres (null where it has none).
-'use strict';
+import { georeferencedTerrain, missingLibrary, pageState } from '/pages/common.js';
 
-(() => {
-  const status = document.getElementById('status');
-  const params = new URLSearchParams(location.search);
-  const duration = Number(params.get('duration') ?? 2);
-  let resolveReady;
-  let rejectReady;
-  const relief = {
-    ready: new Promise((resolve, reject) => {
-      resolveReady = resolve;
-      rejectReady = reject;
-    }),
-    error: null,
-  };
-  window.relief = relief;
-  // A test waits on the promise; a person reads the message.
-  relief.ready.catch(() => {});
+const status = document.getElementById('status');
+const params = new URLSearchParams(location.search);
+const duration = Number(params.get('duration') ?? 2);
+const { relief, resolve: resolveReady, fail } = pageState(status);
+const Cesium = window.Cesium;
 
-  function fail(message) {
-    relief.error = message;
-    status.textContent = message;
-    status.className = 'error';
-    rejectReady(new Error(message));
-  }
+async function start() {
+  const started = performance.now();
+  status.textContent = 'Loading the terrain...';
+  const terrain = await georeferencedTerrain('globe');
+  relief.terrain = terrain;
+  const [west, south, east, north] = terrain.bounds_lonlat;
 
-  if (typeof window.Cesium === 'undefined') {
-    fail('CesiumJS did not load from /lib/cesium/. Install the pages\' libraries: from the ' +
-      'repository, run `npm ci --prefix web` (or start the server with --web-lib pointing at a ' +
-      'node_modules folder holding cesium), then reload.');
-    return;
-  }
-  const Cesium = window.Cesium;
+  // No ion: an empty token, so that nothing could authenticate to it even by mistake.
+  Cesium.Ion.defaultAccessToken = '';
+  const terrainProvider = await Cesium.CesiumTerrainProvider.fromUrl('/cesium/', {
+    requestVertexNormals: true,
+    requestMetadata: true,
+  });
+  relief.terrainProvider = terrainProvider;
+  const imagery = Cesium.TileMapServiceImageryProvider.fromUrl(
+    Cesium.buildModuleUrl('Assets/Textures/NaturalEarthII'));
+  const viewer = new Cesium.Viewer('viewer', {
+    terrainProvider,
+    baseLayer: Cesium.ImageryLayer.fromProviderAsync(imagery),
+    baseLayerPicker: false,
+    geocoder: false,
+    animation: false,
+    timeline: false,
+    homeButton: false,
+    sceneModePicker: false,
+    navigationHelpButton: false,
+    fullscreenButton: false,
+    infoBox: false,
+    selectionIndicator: false,
+  });
+  relief.viewer = viewer;
+  const scene = viewer.scene;
+  // A fixed time, so that the sun (terrain lighting from the vertex normals) is the same on
+  // every load: early morning over Japan, a low sun from the east that shades the slopes.
+  viewer.clock.currentTime = Cesium.JulianDate.fromIso8601('2025-05-01T21:30:00Z');
+  viewer.clock.shouldAnimate = false;
+  scene.globe.enableLighting = true;
+  scene.globe.depthTestAgainstTerrain = true;
 
-  async function start() {
-    const started = performance.now();
-    status.textContent = 'Loading the terrain...';
-    const response = await fetch('/v1/terrain');
-    if (!response.ok) {
-      throw new Error(`/v1/terrain answered ${response.status}: ${await response.text()}`);
-    }
-    const terrain = await response.json();
-    if (!terrain.bounds_lonlat) {
-      throw new Error('this terrain has no georeference, so it has no place on the globe ' +
-        '(build it from a georeferenced DEM, or with --origin LON,LAT)');
-    }
-    relief.terrain = terrain;
-    const [west, south, east, north] = terrain.bounds_lonlat;
-
-    // No ion: an empty token, so that nothing could authenticate to it even by mistake.
-    Cesium.Ion.defaultAccessToken = '';
-    const terrainProvider = await Cesium.CesiumTerrainProvider.fromUrl('/cesium/', {
-      requestVertexNormals: true,
-      requestMetadata: true,
+  // Fly to the terrain's box: from the south-south-west, looking down 18 degrees, far enough
+  // back for most of the box.
+  const [hmin, hmax] = terrain.height_range_m ?? [0, 0];
+  const rectangle = Cesium.Rectangle.fromDegrees(west, south, east, north);
+  const sphere = Cesium.BoundingSphere.fromRectangle3D(
+    rectangle, Cesium.Ellipsoid.WGS84, (hmin + hmax) / 2);
+  await new Promise((resolve) => {
+    viewer.camera.flyToBoundingSphere(sphere, {
+      offset: new Cesium.HeadingPitchRange(
+        Cesium.Math.toRadians(-30), Cesium.Math.toRadians(-18), sphere.radius * 1.5),
+      duration,
+      complete: resolve,
+      cancel: resolve,
     });
-    relief.terrainProvider = terrainProvider;
-    const imagery = Cesium.TileMapServiceImageryProvider.fromUrl(
-      Cesium.buildModuleUrl('Assets/Textures/NaturalEarthII'));
-    const viewer = new Cesium.Viewer('viewer', {
-      terrainProvider,
-      baseLayer: Cesium.ImageryLayer.fromProviderAsync(imagery),
-      baseLayerPicker: false,
-      geocoder: false,
-      animation: false,
-      timeline: false,
-      homeButton: false,
-      sceneModePicker: false,
-      navigationHelpButton: false,
-      fullscreenButton: false,
-      infoBox: false,
-      selectionIndicator: false,
+  });
+
+  // Tiles: done once the globe reports its load queue empty for a few frames in a row.
+  status.textContent = 'Loading tiles...';
+  const frames = await new Promise((resolve, reject) => {
+    let quiet = 0;
+    let count = 0;
+    const deadline = performance.now() + 120000;
+    const remove = scene.postRender.addEventListener(() => {
+      count += 1;
+      quiet = scene.globe.tilesLoaded ? quiet + 1 : 0;
+      if (quiet >= 5) {
+        remove();
+        resolve(count);
+      } else if (performance.now() > deadline) {
+        remove();
+        reject(new Error('the tiles did not finish loading within 120 s'));
+      }
     });
-    relief.viewer = viewer;
-    const scene = viewer.scene;
-    // A fixed time, so that the sun (terrain lighting from the vertex normals) is the same on
-    // every load: early morning over Japan, a low sun from the east that shades the slopes.
-    viewer.clock.currentTime = Cesium.JulianDate.fromIso8601('2025-05-01T21:30:00Z');
-    viewer.clock.shouldAnimate = false;
-    scene.globe.enableLighting = true;
-    scene.globe.depthTestAgainstTerrain = true;
+  });
+  status.textContent = '';
+  resolveReady({ frames, ms: Math.round(performance.now() - started) });
+}
 
-    // Fly to the terrain's box: from the south-south-west, looking down 18 degrees, far enough
-    // back for most of the box.
-    const [hmin, hmax] = terrain.height_range_m ?? [0, 0];
-    const rectangle = Cesium.Rectangle.fromDegrees(west, south, east, north);
-    const sphere = Cesium.BoundingSphere.fromRectangle3D(
-      rectangle, Cesium.Ellipsoid.WGS84, (hmin + hmax) / 2);
-    await new Promise((resolve) => {
-      viewer.camera.flyToBoundingSphere(sphere, {
-        offset: new Cesium.HeadingPitchRange(
-          Cesium.Math.toRadians(-30), Cesium.Math.toRadians(-18), sphere.radius * 1.5),
-        duration,
-        complete: resolve,
-        cancel: resolve,
-      });
-    });
+relief.sample = async (points) => {
+  const positions = points.map(([lon, lat]) => Cesium.Cartographic.fromDegrees(lon, lat));
+  await Cesium.sampleTerrainMostDetailed(relief.terrainProvider, positions, true);
+  return positions.map((p) => (Number.isFinite(p.height) ? p.height : null));
+};
 
-    // Tiles: done once the globe reports its load queue empty for a few frames in a row.
-    status.textContent = 'Loading tiles...';
-    const frames = await new Promise((resolve, reject) => {
-      let quiet = 0;
-      let count = 0;
-      const deadline = performance.now() + 120000;
-      const remove = scene.postRender.addEventListener(() => {
-        count += 1;
-        quiet = scene.globe.tilesLoaded ? quiet + 1 : 0;
-        if (quiet >= 5) {
-          remove();
-          resolve(count);
-        } else if (performance.now() > deadline) {
-          remove();
-          reject(new Error('the tiles did not finish loading within 120 s'));
-        }
-      });
-    });
-    status.textContent = '';
-    resolveReady({ frames, ms: Math.round(performance.now() - started) });
-  }
-
-  relief.sample = async (points) => {
-    const positions = points.map(([lon, lat]) => Cesium.Cartographic.fromDegrees(lon, lat));
-    await Cesium.sampleTerrainMostDetailed(relief.terrainProvider, positions, true);
-    return positions.map((p) => (Number.isFinite(p.height) ? p.height : null));
-  };
-
+if (typeof Cesium === 'undefined') {
+  fail(missingLibrary('CesiumJS', '/lib/cesium/', 'cesium'));
+} else {
   start().catch((e) => fail(`The CesiumJS page failed: ${e.message ?? e}`));
-})();
+}

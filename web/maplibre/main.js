@@ -14,28 +14,12 @@
 // - `sample(points)`: at [lon, lat] points, MapLibre's `queryTerrainElevation` in metres and
 //   the raster-dem tile whose pixels it read ({z, x, y}, or null where it read none).
 
+import { georeferencedTerrain, missingLibrary, pageState } from '/pages/common.js';
+
 const status = document.getElementById('status');
 const params = new URLSearchParams(location.search);
 const encoding = params.get('encoding') === 'terrarium' ? 'terrarium' : 'terrain-rgb';
-let resolveReady;
-let rejectReady;
-const relief = {
-  ready: new Promise((resolve, reject) => {
-    resolveReady = resolve;
-    rejectReady = reject;
-  }),
-  encoding,
-  error: null,
-};
-window.relief = relief;
-relief.ready.catch(() => {});
-
-function fail(message) {
-  relief.error = message;
-  status.textContent = message;
-  status.className = 'error';
-  rejectReady(new Error(message));
-}
+const { relief, resolve: resolveReady, fail } = pageState(status, { encoding });
 
 // Web Mercator world coordinates in [0, 1), as MapLibre's tiles count them.
 function world(lon, lat) {
@@ -76,20 +60,10 @@ async function start() {
   try {
     maplibregl = await import('/lib/maplibre-gl/maplibre-gl.mjs');
   } catch (e) {
-    throw new Error('MapLibre GL JS did not load from /lib/maplibre-gl/. Install the pages\' ' +
-      'libraries: from the repository, run `npm ci --prefix web` (or start the server with ' +
-      '--web-lib pointing at a node_modules folder holding maplibre-gl), then reload.');
+    throw new Error(missingLibrary('MapLibre GL JS', '/lib/maplibre-gl/', 'maplibre-gl'));
   }
   status.textContent = 'Loading the terrain...';
-  const response = await fetch('/v1/terrain');
-  if (!response.ok) {
-    throw new Error(`/v1/terrain answered ${response.status}: ${await response.text()}`);
-  }
-  const terrain = await response.json();
-  if (!terrain.bounds_lonlat) {
-    throw new Error('this terrain has no georeference, so it has no place on the map ' +
-      '(build it from a georeferenced DEM, or with --origin LON,LAT)');
-  }
+  const terrain = await georeferencedTerrain('map');
   relief.terrain = terrain;
   const [west, south, east, north] = terrain.bounds_lonlat;
 

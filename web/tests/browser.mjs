@@ -130,3 +130,46 @@ export function within(ms, what, promise) {
 export function report(result) {
   process.stdout.write(`${JSON.stringify(result)}\n`);
 }
+
+/**
+ * Opens `path` of the server in a fresh browser, waits up to `ms` for the page's
+ * `window.relief.ready` (`what` names the wait in a timeout), then runs `body(page)` for the
+ * rest of the result, and prints one line of JSON: `ok`, `ready`, `loaded_ms`, what `body`
+ * returned, `total_ms`, the request log and the console; or `ok: false` with the error (and
+ * what the page says), the request log and the console.
+ */
+export async function runPage(base, path, ms, what, body) {
+  const started = Date.now();
+  const browser = await launch({ width: 960, height: 600 });
+  const { page } = browser;
+  let result;
+  try {
+    await page.goto(`${base}${path}`);
+    const ready = await within(ms, what, page.evaluate(async () => {
+      if (!window.relief) throw new Error('the page has no window.relief');
+      return window.relief.ready;
+    }));
+    const loaded = Date.now() - started;
+    const rest = await body(page);
+    result = {
+      ok: true,
+      ready,
+      loaded_ms: loaded,
+      ...rest,
+      total_ms: Date.now() - started,
+      requests: browser.requests,
+      console: browser.console,
+    };
+  } catch (e) {
+    const error = await page.evaluate(() => window.relief?.error).catch(() => null);
+    result = {
+      ok: false,
+      error: `${e.message}${error ? ` (the page says: ${error})` : ''}`,
+      requests: browser.requests,
+      console: browser.console,
+    };
+  } finally {
+    await browser.close();
+  }
+  report(result);
+}

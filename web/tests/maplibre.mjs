@@ -7,22 +7,13 @@
 //   node web/tests/maplibre.mjs http://127.0.0.1:PORT [--encoding terrain-rgb|terrarium]
 //        [--screenshot out.png] [--points 200]
 
-import { args, launch, points, report, within } from './browser.mjs';
+import { args, points, runPage, within } from './browser.mjs';
 
 const { base, options } = args();
 const encoding = options.encoding ?? 'terrain-rgb';
 const count = Number(options.points ?? 200);
-const started = Date.now();
-const browser = await launch({ width: 960, height: 600 });
-const { page } = browser;
-let result;
-try {
-  await page.goto(`${base}/maplibre/?encoding=${encoding}`);
-  const ready = await within(120000, 'loading the MapLibre page', page.evaluate(async () => {
-    if (!window.relief) throw new Error('the page has no window.relief');
-    return window.relief.ready;
-  }));
-  const loaded = Date.now() - started;
+const path = `/maplibre/?encoding=${encoding}`;
+await runPage(base, path, 120000, 'loading the MapLibre page', async (page) => {
   if (options.screenshot) await page.screenshot({ path: options.screenshot });
   const terrain = await page.evaluate(() => window.relief.terrain);
   const tilejson = await page.evaluate(() => {
@@ -53,28 +44,11 @@ try {
     const samples = await page.evaluate((p) => window.relief.sample(p), pts);
     views.push({ name: close ? 'close' : 'whole', ...view, points: pts, samples });
   }
-  result = {
-    ok: true,
+  return {
     encoding,
-    ready,
-    loaded_ms: loaded,
-    total_ms: Date.now() - started,
     bounds: terrain.bounds_lonlat,
     source: tilejson,
     views,
-    requests: browser.requests,
-    console: browser.console,
     screenshot: options.screenshot ?? null,
   };
-} catch (e) {
-  const error = await page.evaluate(() => window.relief?.error).catch(() => null);
-  result = {
-    ok: false,
-    error: `${e.message}${error ? ` (the page says: ${error})` : ''}`,
-    requests: browser.requests,
-    console: browser.console,
-  };
-} finally {
-  await browser.close();
-}
-report(result);
+});
