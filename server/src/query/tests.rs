@@ -77,6 +77,19 @@ fn ray_in(ex: f64, ey: f64) -> impl Strategy<Value = Ray> {
 
 /// Whether two first hits agree: both none, or as far within rounding (on the same cell,
 /// unless the hit lies where cells meet).
+/// The exhaustive first hit of `ray`, after checking that the pyramid's cast and the column
+/// march both find it.
+fn cast_and_march_agree_with_exhaustive(
+    t: &Terrain,
+    ray: &Ray,
+) -> Result<Option<Hit>, TestCaseError> {
+    let r = GridRay::new(t, ray, 0.0).unwrap();
+    let all = t.exhaustive_grid(&r).map(|h| t.hit(&r, h));
+    same_hit(t.cast(ray).unwrap(), all)?;
+    same_hit(t.march(ray).unwrap(), all)?;
+    Ok(all)
+}
+
 fn same_hit(a: Option<Hit>, b: Option<Hit>) -> Result<(), TestCaseError> {
     match (a, b) {
         (None, None) => Ok(()),
@@ -102,10 +115,7 @@ proptest! {
             (Just(t), ray_in(ex, ey))
         })
     ) {
-        let r = GridRay::new(&t, &ray, 0.0).unwrap();
-        let all = t.exhaustive_grid(&r).map(|h| t.hit(&r, h));
-        same_hit(t.cast(&ray).unwrap(), all)?;
-        same_hit(t.march(&ray).unwrap(), all)?;
+        let all = cast_and_march_agree_with_exhaustive(&t, &ray)?;
         // And the hit is where the ray first comes to the ground: on or under the surface
         // there, above it everywhere before (sampled densely).
         let unit = ray.dir.normalize();
@@ -135,10 +145,7 @@ proptest! {
             (Just(t), ray_in(ex, ey))
         })
     ) {
-        let r = GridRay::new(&t, &ray, 0.0).unwrap();
-        let all = t.exhaustive_grid(&r).map(|h| t.hit(&r, h));
-        same_hit(t.cast(&ray).unwrap(), all)?;
-        same_hit(t.march(&ray).unwrap(), all)?;
+        cast_and_march_agree_with_exhaustive(&t, &ray)?;
     }
 
     /// A line of sight is blocked exactly where dense sampling of the segment first finds it

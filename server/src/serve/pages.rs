@@ -8,7 +8,7 @@
 //! under the `--web-lib` folder (by default `web/node_modules` in the repository the server was
 //! built from, where `npm ci --prefix web` installs them). Without them a page answers 503
 //! with a message saying to run that command, and the server says so in its log at start.
-//! What the pages share (`web/common/page.js`) is served at `/pages/common.js`.
+//! What the pages share (`web/common/`) is served at `/pages/common.js` and `/pages/common.css`.
 
 use super::state::AppState;
 use axum::Router;
@@ -26,6 +26,7 @@ const CESIUM_JS: &str = include_str!("../../../web/cesium/main.js");
 const MAPLIBRE_HTML: &str = include_str!("../../../web/maplibre/index.html");
 const MAPLIBRE_JS: &str = include_str!("../../../web/maplibre/main.js");
 const COMMON_JS: &str = include_str!("../../../web/common/page.js");
+const COMMON_CSS: &str = include_str!("../../../web/common/page.css");
 
 /// An npm package a page loads, served from the web library folder.
 #[derive(Clone, Copy, Debug)]
@@ -94,6 +95,10 @@ pub fn routes(web_lib: &Path) -> Router<Arc<AppState>> {
         .route("/maplibre/", get(page(MAPLIBRE_HTML, MAPLIBRE)))
         .route("/maplibre/main.js", get(js(MAPLIBRE_JS)))
         .route("/pages/common.js", get(js(COMMON_JS)))
+        .route(
+            "/pages/common.css",
+            get(|| async { text(StatusCode::OK, "text/css; charset=utf-8", COMMON_CSS.into()) }),
+        )
         .nest_service(CESIUM.url, ServeDir::new(web_lib.join(CESIUM.dir)))
         .nest_service(MAPLIBRE.url, ServeDir::new(web_lib.join(MAPLIBRE.dir)))
 }
