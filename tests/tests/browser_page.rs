@@ -7,6 +7,11 @@
 //! - The page loads with no console error, connects, flies poses of the standard path, draws
 //!   frames at 1280x720 with no desync, and every request stays on loopback; its screenshot is
 //!   not blank (`RELIEF_BLESS=1` writes it to `docs/img/page.png`).
+//! - The server killed and restarted under the page: it says so, reconnects and resumes, with no
+//!   desync.
+//! - The wasm and relief-proto agree on a real session recorded here: the hello, poses, acks,
+//!   digests, tiles and every added tile's geometry, bit for bit (in Node.js, no browser).
+//! - The crack test in the page's pixels (ignored for now: isolated one-pixel holes remain).
 //!
 //! They need Node.js 20+, Chromium and `web/node_modules` (the README's test command installs
 //! them), and for the pkg check the `wasm32-unknown-unknown` target and wasm-bindgen-cli 0.2.130
@@ -442,5 +447,107 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
     println!(
         "wasm and Rust agree on {} messages ({tiles} tiles added)",
         msgs.len()
+    );
+}
+
+/// The crack test in the browser's own pixels (as `render_tiles.rs` does it for the wgpu
+/// client): the crop built with 16-cell tiles (five levels, seams everywhere), the page on a
+/// magenta background flying the standard path with the path's own pitch, looking down 80
+/// degrees and grazing 3 degrees down, at tau 1. With crack patches no background pixel should
+/// be enclosed by terrain; with nothing against cracks some are (so the test can fail).
+///
+/// **Fails today, hence ignored:** with patches the page shows a few isolated one-pixel holes
+/// in mid-terrain (1 to 5 pixels over about 30 screenshots of 480x270, against 118 to 180
+/// without patches), where `render_tiles.rs` asserts none for the wgpu client. Suspected: T-junctions where a finer
+/// tile's edge vertex lies exactly on the coarser edge (no patch) and the f32 world positions
+/// put it a hair off the line. Run it with `--ignored`.
+#[tokio::test(flavor = "multi_thread")]
+#[ignore = "the page shows isolated 1-pixel holes with patches: see the doc comment"]
+async fn the_page_shows_no_crack_with_patches_and_cracks_without() {
+    use relief_client::render::offscreen::enclosed_background;
+    use relief_server::serve::config::{ServeConfig, TerrainSource};
+    prerequisites();
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("fuji16.relief");
+    let dem = relief_server::dem::embedded_default().unwrap();
+    let opts = relief_server::preprocess::BuildOptions {
+        tile_size: 16,
+        ..Default::default()
+    };
+    relief_server::preprocess::build_store(&dem, &store, &opts).unwrap();
+    let server = TestServer::start_with(ServeConfig {
+        source: TerrainSource::Store(store),
+        addr: "127.0.0.1:0".parse().unwrap(),
+        cache_dir: dir.path().join("cache"),
+        limits: Limits::default(),
+        web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
+    })
+    .await;
+    let url = format!("http://{}", server.addr);
+    let mut holes: HashMap<&str, (usize, usize, Vec<String>)> = HashMap::new();
+    for crack in ["patches", "none"] {
+        for pitch in ["path", "-80", "-3"] {
+            let out_dir = dir.path().join(format!("{crack}{pitch}"));
+            std::fs::create_dir_all(&out_dir).unwrap();
+            let tilt = if pitch == "path" {
+                String::new()
+            } else {
+                format!("&pitch={pitch}")
+            };
+            let query = format!("background=%23ff00ff&tau=1&crack={crack}{tilt}");
+            let out = node(
+                "page_cracks.mjs",
+                &url,
+                &[
+                    "--out-dir",
+                    &out_dir.display().to_string(),
+                    "--poses",
+                    "60",
+                    "--query",
+                    &query,
+                ],
+            )
+            .await;
+            assert_eq!(out["relief"]["desyncs"], 0, "{}", out["relief"]);
+            let e = holes.entry(crack).or_default();
+            for s in out["shots"].as_array().unwrap() {
+                let path = s["path"].as_str().unwrap();
+                let img = image::open(path).unwrap().to_rgba8();
+                let n = enclosed_background(&img, [255, 0, 255]);
+                e.0 += 1;
+                e.1 += n;
+                if n > 0 {
+                    e.2.push(format!("pitch {pitch} pose {}: {n} px", s["pose"]));
+                    if e.2.len() == 1 {
+                        let keep = Path::new(env!("CARGO_TARGET_TMPDIR"))
+                            .join("browser")
+                            .join(format!("page-crack-{crack}.png"));
+                        std::fs::create_dir_all(keep.parent().unwrap()).unwrap();
+                        std::fs::copy(path, keep).unwrap();
+                    }
+                }
+            }
+        }
+    }
+    let (p, n) = (&holes["patches"], &holes["none"]);
+    println!(
+        "page crack test: patches {} enclosed background pixels in {} screenshots, none {} in {} \
+         ({} screenshots with holes)",
+        p.1,
+        p.0,
+        n.1,
+        n.0,
+        n.2.len()
+    );
+    assert!(
+        p.0 >= 20 && n.0 >= 20,
+        "too few screenshots: {} {}",
+        p.0,
+        n.0
+    );
+    assert_eq!(p.1, 0, "cracks with patches: {:?}", p.2);
+    assert!(
+        n.1 > 0,
+        "no crack without patches: the test cannot see cracks"
     );
 }

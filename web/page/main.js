@@ -3,7 +3,7 @@
 // WebGL2. The page does no stitching: each tile arrives with its crack patches, and it draws
 // the triangles the wasm hands it.
 //
-// Query options: ?tau=2, ?crack=patches|skirts|none, ?background=#rrggbb, ?wire=1,
+// Query options: ?tau=2, ?crack=patches|skirts|none, ?background=#rrggbb, ?wire=1, ?hud=0,
 // ?path=standard|stress (fly the camera path, ?poses=N of its poses, then hold; ?pitch=DEG
 // looks that far down instead of the path's own pitch, for crack tests looking down).
 // window.relief holds the counters the browser tests read.
@@ -48,6 +48,11 @@ tauInput.value = String(tau);
 tauValue.textContent = String(tau);
 relief.tau = tau;
 wireInput.checked = query.get('wire') === '1';
+if (query.get('hud') === '0') {
+  // Nothing over the terrain (the crack test reads the page's pixels).
+  document.getElementById('hud').style.display = 'none';
+  document.getElementById('help').style.display = 'none';
+}
 
 function say(text) {
   relief.message = text;
