@@ -95,6 +95,21 @@ async fn the_page_and_its_wasm_are_served_from_the_binary() {
         assert!(ct.starts_with(kind), "{path}: content-type {ct}");
         assert!(body.windows(needle.len()).any(|w| w == needle), "{path}");
     }
+    // Gzip for browsers that take it: the page's weight over the wire.
+    let mut weight = 0;
+    for path in [
+        "/",
+        "/page/main.js",
+        "/page/pkg/relief_wasm.js",
+        "/page/pkg/relief_wasm_bg.wasm",
+    ] {
+        let (status, hs, body) = get(&server, path, &["Accept-Encoding: gzip"]).await;
+        assert_eq!(status, 200, "{path}");
+        assert_eq!(header(&hs, "content-encoding"), Some("gzip"), "{path}");
+        weight += body.len();
+    }
+    println!("the page weighs {weight} bytes gzipped (HTML, JS, wasm)");
+    assert!(weight < 150_000, "{weight} bytes");
     let (status, ..) = get(&server, "/page/nothing.js", &[]).await;
     assert_eq!(status, 404);
 }

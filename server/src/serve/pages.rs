@@ -21,6 +21,7 @@ use axum::routing::get;
 use std::net::SocketAddr;
 use std::path::Path;
 use std::sync::Arc;
+use tower_http::compression::CompressionLayer;
 use tower_http::services::ServeDir;
 
 const PAGE_HTML: &str = include_str!("../../../web/page/index.html");
@@ -89,7 +90,8 @@ pub fn routes(web_lib: &Path) -> Router<Arc<AppState>> {
         }
     };
     let own = || async { text(StatusCode::OK, "text/html; charset=utf-8", PAGE_HTML.into()) };
-    Router::new()
+    // Relief's page, gzip-compressed for browsers that accept it (the wasm to a third).
+    let relief_page = Router::new()
         .route("/", get(own))
         .route("/view", get(own))
         .route("/page/main.js", get(js(PAGE_JS)))
@@ -106,6 +108,9 @@ pub fn routes(web_lib: &Path) -> Router<Arc<AppState>> {
                 )
             }),
         )
+        .layer(CompressionLayer::new().gzip(true));
+    Router::new()
+        .merge(relief_page)
         .route("/cesium", get(|| async { Redirect::permanent("/cesium/") }))
         .route("/cesium/", get(page(CESIUM_HTML, CESIUM)))
         .route("/cesium/main.js", get(js(CESIUM_JS)))
