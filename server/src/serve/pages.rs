@@ -1,8 +1,11 @@
-//! The browser pages: `GET /cesium/`, a CesiumJS viewer over the quantized-mesh terrain, and
+//! The browser pages: `GET /` (and `/view`), Relief's own thin client, which streams tiles over
+//! `/v1/stream` and draws them in WebGL2 (issue 15); `GET /cesium/`, a CesiumJS viewer over the quantized-mesh terrain, and
 //! `GET /maplibre/` (`?encoding=terrarium` for Terrarium tiles), a MapLibre GL JS map in
 //! terrain mode over the terrain-RGB tiles, both over this server's terrain.
 //!
-//! The pages (`web/cesium/`, `web/maplibre/`) are compiled into the binary. The libraries they
+//! The pages (`web/page/`, `web/cesium/`, `web/maplibre/`) are compiled into the binary, and so
+//! is Relief's page's WebAssembly (`web/page/pkg/`, relief-proto built by `web/build-wasm.sh`
+//! and committed): that page needs nothing else. The libraries they
 //! load are the npm packages of `web/package.json`, served from disk, never from a CDN:
 //! `/lib/cesium/` from `cesium/Build/Cesium` and `/lib/maplibre-gl/` from `maplibre-gl/dist`
 //! under the `--web-lib` folder (by default `web/node_modules` in the repository the server was
@@ -19,8 +22,13 @@ use axum::routing::get;
 use std::net::SocketAddr;
 use std::path::Path;
 use std::sync::Arc;
+use tower_http::compression::CompressionLayer;
 use tower_http::services::ServeDir;
 
+const PAGE_HTML: &str = include_str!("../../../web/page/index.html");
+const PAGE_JS: &str = include_str!("../../../web/page/main.js");
+const PAGE_GLUE: &str = include_str!("../../../web/page/pkg/relief_wasm.js");
+const PAGE_WASM: &[u8] = include_bytes!("../../../web/page/pkg/relief_wasm_bg.wasm");
 const CESIUM_HTML: &str = include_str!("../../../web/cesium/index.html");
 const CESIUM_JS: &str = include_str!("../../../web/cesium/main.js");
 const MAPLIBRE_HTML: &str = include_str!("../../../web/maplibre/index.html");
@@ -84,7 +92,28 @@ pub fn routes(web_lib: &Path) -> Router<Arc<AppState>> {
             )
         }
     };
+    let own = || async { text(StatusCode::OK, "text/html; charset=utf-8", PAGE_HTML.into()) };
+    // Relief's page, gzip-compressed for browsers that accept it (the wasm to a third).
+    let relief_page = Router::new()
+        .route("/", get(own))
+        .route("/view", get(own))
+        .route("/page/main.js", get(js(PAGE_JS)))
+        .route("/page/pkg/relief_wasm.js", get(js(PAGE_GLUE)))
+        .route(
+            "/page/pkg/relief_wasm_bg.wasm",
+            get(|| async {
+                (
+                    [
+                        (header::CONTENT_TYPE, "application/wasm"),
+                        (header::CACHE_CONTROL, "no-cache"),
+                    ],
+                    PAGE_WASM,
+                )
+            }),
+        )
+        .layer(CompressionLayer::new().gzip(true));
     Router::new()
+        .merge(relief_page)
         .route("/cesium", get(|| async { Redirect::permanent("/cesium/") }))
         .route("/cesium/", get(page(CESIUM_HTML, CESIUM)))
         .route("/cesium/main.js", get(js(CESIUM_JS)))
@@ -156,6 +185,7 @@ pub fn log_start(addr: SocketAddr, web_lib: &Path) {
         ip if ip.is_unspecified() => format!("[::1]:{}", addr.port()),
         _ => addr.to_string(),
     };
+    tracing::info!("the terrain in your browser: http://{host}/");
     tracing::info!(
         "pages: http://{host}/cesium/ (CesiumJS), http://{host}/maplibre/ (MapLibre GL JS)"
     );
@@ -193,6 +223,17 @@ mod tests {
             escape("<a href=\"x\">&</a>"),
             "&lt;a href=&quot;x&quot;&gt;&amp;&lt;/a&gt;"
         );
+    }
+
+    #[test]
+    fn relief_page_loads_its_wasm_from_this_server_only() {
+        assert!(PAGE_HTML.contains("/page/main.js"));
+        assert!(PAGE_JS.contains("/page/pkg/relief_wasm.js"));
+        for text in [PAGE_HTML, PAGE_JS] {
+            assert!(!text.contains("http://") && !text.contains("https://"));
+        }
+        assert_eq!(&PAGE_WASM[..4], b"\0asm", "a WebAssembly module");
+        assert!(PAGE_GLUE.contains("relief_wasm_bg.wasm"));
     }
 
     #[test]
