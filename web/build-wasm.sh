@@ -18,7 +18,10 @@ if ! rustup target list --installed 2>/dev/null | grep -qx wasm32-unknown-unknow
 fi
 BINDGEN="${WASM_BINDGEN:-$(command -v wasm-bindgen || echo "$HOME/.cargo/bin/wasm-bindgen")}"
 if ! "$BINDGEN" --version 2>/dev/null | grep -qx "wasm-bindgen $VERSION"; then
-  cargo install --locked wasm-bindgen-cli --version "$VERSION"
+  # The lock file's versions first; a registry mirror without one of them gets the newest
+  # compatible versions instead.
+  cargo install --locked wasm-bindgen-cli --version "$VERSION" ||
+    cargo install wasm-bindgen-cli --version "$VERSION"
   BINDGEN="$HOME/.cargo/bin/wasm-bindgen"
 fi
 TARGET="${CARGO_TARGET_DIR:-target}"
