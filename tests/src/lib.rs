@@ -273,3 +273,60 @@ pub fn crack_views(cam: Camera) -> [Camera; 3] {
     };
     [cam, tilt(80.0), tilt(3.0)]
 }
+
+/// Runs `node web/tests/<script> <url> <args>` (a browser test script) and returns the JSON
+/// line it prints last; fails with the script's error, the page's console and stderr when it
+/// did not succeed.
+pub async fn node_json(script: &str, url: &str, args: &[&str]) -> serde_json::Value {
+    let path = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../web/tests")).join(script);
+    let mut cmd = std::process::Command::new("node");
+    cmd.arg(&path).arg(url).args(args);
+    let started = Instant::now();
+    let out = tokio::task::spawn_blocking(move || cmd.output())
+        .await
+        .expect("the node task")
+        .unwrap_or_else(|e| panic!("cannot run node {}: {e}", path.display()));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let line = stdout.lines().last().unwrap_or("");
+    let v: serde_json::Value = serde_json::from_str(line).unwrap_or_else(|e| {
+        panic!(
+            "{script} printed no JSON result ({e}; exit {:?}).\nstdout: {stdout}\nstderr: {stderr}",
+            out.status.code()
+        )
+    });
+    assert!(
+        v["ok"] == true,
+        "{script} failed: {}\nconsole: {}\nstderr: {stderr}",
+        v["error"],
+        v["console"]
+    );
+    println!("{script}: {:.1} s", started.elapsed().as_secs_f64());
+    v
+}
+
+/// A server of the embedded crop built with `tile_size`-cell tiles meshed as `mesh`, and the
+/// folder its store lives in (keep it while the server runs).
+pub async fn serve_tiles_of(
+    tile_size: u32,
+    mesh: relief_proto::tile::body::MeshKind,
+) -> (tempfile::TempDir, TestServer) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let store = dir.path().join("crop.relief");
+    let dem = relief_server::dem::embedded_default().expect("embedded DEM");
+    let opts = relief_server::preprocess::BuildOptions {
+        tile_size,
+        tile_mesh: mesh,
+        ..Default::default()
+    };
+    relief_server::preprocess::build_store(&dem, &store, &opts).expect("store");
+    let server = TestServer::start_with(ServeConfig {
+        source: TerrainSource::Store(store),
+        addr: "127.0.0.1:0".parse().expect("address"),
+        cache_dir: dir.path().join("cache"),
+        limits: Limits::default(),
+        web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
+    })
+    .await;
+    (dir, server)
+}

@@ -26,13 +26,13 @@ use relief_server::formats::sampler::{Points, Resampler};
 use relief_server::geo::GeoTransform;
 use relief_server::geo::tiling::{Scheme, TileXyz, cesium_level_error};
 use relief_server::store::Store;
-use relief_tests::{ChildServer, free_addr, test_store};
+use relief_tests::{ChildServer, free_addr, node_json, test_store};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 const BIN: &str = env!("CARGO_BIN_EXE_relief-test-server");
@@ -110,36 +110,6 @@ fn prerequisites(browser: bool) {
 async fn server() -> ChildServer {
     let lib = node_modules().display().to_string();
     ChildServer::start_env(Path::new(BIN), free_addr(), &["--web-lib", &lib], &[]).await
-}
-
-/// Runs `node web/tests/<script> <url> <args>` and returns its JSON line; fails with the
-/// script's error, the page's console and stderr if it did not succeed.
-async fn node(script: &str, url: &str, args: &[&str]) -> Value {
-    let path = repo().join("web/tests").join(script);
-    let mut cmd = Command::new("node");
-    cmd.arg(&path).arg(url).args(args);
-    let started = Instant::now();
-    let out = tokio::task::spawn_blocking(move || cmd.output())
-        .await
-        .unwrap()
-        .unwrap_or_else(|e| panic!("cannot run node {}: {e}", path.display()));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let line = stdout.lines().last().unwrap_or("");
-    let v: Value = serde_json::from_str(line).unwrap_or_else(|e| {
-        panic!(
-            "{script} printed no JSON result ({e}; exit {:?}).\nstdout: {stdout}\nstderr: {stderr}",
-            out.status.code()
-        )
-    });
-    assert!(
-        v["ok"] == true,
-        "{script} failed: {}\nconsole: {}\nstderr: {stderr}",
-        v["error"],
-        v["console"]
-    );
-    println!("{script}: {:.1} s", started.elapsed().as_secs_f64());
-    v
 }
 
 /// The store the server serves, and its placement on the Earth.
@@ -496,7 +466,7 @@ async fn cesium_samples_the_terrain_and_draws_the_golden_view_from_loopback_only
     let server = server().await;
     let url = format!("http://{}", server.addr);
     let actual = shot("cesium-actual.png");
-    let out = node(
+    let out = node_json(
         "cesium.mjs",
         &url,
         &["--screenshot", &actual.display().to_string()],
@@ -616,7 +586,7 @@ const GOLDEN_FAR: f64 = 0.001;
 
 /// One MapLibre run: the page with `encoding`, its heights against Relief's in each view.
 async fn maplibre(url: &str, encoding: &str, step: f64, screenshot: &Path) {
-    let out = node(
+    let out = node_json(
         "maplibre.mjs",
         url,
         &[
@@ -762,7 +732,7 @@ async fn loaders_gl_decodes_the_meshes_relief_meant_to_send() {
     prerequisites(false);
     let server = server().await;
     let url = format!("http://{}", server.addr);
-    let out = node("quantized_mesh.mjs", &url, &[]).await;
+    let out = node_json("quantized_mesh.mjs", &url, &[]).await;
     let (store, geo) = store();
     let r = Resampler::new(&store, &geo);
     let shape = &store.geometry().shape;

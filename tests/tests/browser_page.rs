@@ -19,7 +19,7 @@
 
 use relief_server::serve::config::Limits;
 use relief_tests::http::{get, header};
-use relief_tests::{ChildServer, TestServer, free_addr};
+use relief_tests::{ChildServer, TestServer, free_addr, node_json, serve_tiles_of};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -44,31 +44,6 @@ fn prerequisites() {
          README's test command",
         chromium.display()
     );
-}
-
-/// Runs `node web/tests/<script> <url> <args>` and returns its JSON line, failing with the
-/// script's error and the page's console when it did not succeed.
-async fn node(script: &str, url: &str, args: &[&str]) -> Value {
-    let path = repo().join("web/tests").join(script);
-    let mut cmd = Command::new("node");
-    cmd.arg(&path).arg(url).args(args);
-    let out = tokio::task::spawn_blocking(move || cmd.output())
-        .await
-        .unwrap()
-        .unwrap_or_else(|e| panic!("cannot run node {}: {e}", path.display()));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    let line = stdout.lines().last().unwrap_or("");
-    let v: Value = serde_json::from_str(line).unwrap_or_else(|e| {
-        panic!("{script} printed no JSON result ({e}).\nstdout: {stdout}\nstderr: {stderr}")
-    });
-    assert!(
-        v["ok"] == true,
-        "{script} failed: {}\nconsole: {}\nstderr: {stderr}",
-        v["error"],
-        v["console"]
-    );
-    v
 }
 
 #[tokio::test]
@@ -168,7 +143,7 @@ async fn the_page_flies_the_standard_path_and_draws_it_without_desync() {
     std::fs::create_dir_all(&dir).unwrap();
     let shot = dir.join("page.png");
     let poses = 100;
-    let out = node(
+    let out = node_json(
         "page.mjs",
         &url,
         &[
@@ -249,7 +224,7 @@ async fn the_page_says_the_server_is_gone_and_resumes_when_it_is_back() {
     ];
     let page = tokio::spawn(async move {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();
-        node("page_restart.mjs", &url, &args).await
+        node_json("page_restart.mjs", &url, &args).await
     });
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(90);
     while !ready.exists() {
@@ -480,24 +455,8 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
 #[ignore = "the page shows isolated 1-pixel holes with patches: see the doc comment"]
 async fn the_page_shows_no_crack_with_patches_and_cracks_without() {
     use relief_client::render::offscreen::enclosed_background;
-    use relief_server::serve::config::{ServeConfig, TerrainSource};
     prerequisites();
-    let dir = tempfile::tempdir().unwrap();
-    let store = dir.path().join("fuji16.relief");
-    let dem = relief_server::dem::embedded_default().unwrap();
-    let opts = relief_server::preprocess::BuildOptions {
-        tile_size: 16,
-        ..Default::default()
-    };
-    relief_server::preprocess::build_store(&dem, &store, &opts).unwrap();
-    let server = TestServer::start_with(ServeConfig {
-        source: TerrainSource::Store(store),
-        addr: "127.0.0.1:0".parse().unwrap(),
-        cache_dir: dir.path().join("cache"),
-        limits: Limits::default(),
-        web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
-    })
-    .await;
+    let (dir, server) = serve_tiles_of(16, relief_proto::tile::body::MeshKind::Grid).await;
     let url = format!("http://{}", server.addr);
     let mut holes: HashMap<&str, (usize, usize, Vec<String>)> = HashMap::new();
     for crack in ["patches", "none"] {
@@ -510,7 +469,7 @@ async fn the_page_shows_no_crack_with_patches_and_cracks_without() {
                 format!("&pitch={pitch}")
             };
             let query = format!("background=%23ff00ff&tau=1&crack={crack}{tilt}");
-            let out = node(
+            let out = node_json(
                 "page_cracks.mjs",
                 &url,
                 &[

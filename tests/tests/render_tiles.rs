@@ -17,7 +17,6 @@ use relief_client::session::{Session, SessionConfig};
 use relief_proto::msg::{CrackMode, StreamKind, TileStreamParams};
 use relief_proto::tile::body::MeshKind;
 use relief_proto::view::Lens;
-use relief_server::serve::config::{Limits, ServeConfig, TerrainSource};
 use relief_tests::{TestServer, path};
 use std::time::Instant;
 
@@ -159,24 +158,7 @@ async fn fly(gpu: &Gpu, url: &str, crack: CrackMode, tau: f32) -> (Holes, Holes)
 
 /// A server of the embedded crop built with 16-cell tiles meshed as `mesh`, and its folder.
 async fn serve(mesh: MeshKind) -> (tempfile::TempDir, TestServer) {
-    let dir = tempfile::tempdir().unwrap();
-    let store = dir.path().join("fuji16.relief");
-    let dem = relief_server::dem::embedded_default().unwrap();
-    let opts = relief_server::preprocess::BuildOptions {
-        tile_size: TILE,
-        tile_mesh: mesh,
-        ..Default::default()
-    };
-    relief_server::preprocess::build_store(&dem, &store, &opts).unwrap();
-    let server = TestServer::start_with(ServeConfig {
-        source: TerrainSource::Store(store),
-        addr: "127.0.0.1:0".parse().unwrap(),
-        cache_dir: dir.path().join("cache"),
-        limits: Limits::default(),
-        web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
-    })
-    .await;
-    (dir, server)
+    relief_tests::serve_tiles_of(TILE, mesh).await
 }
 
 /// The adaptive meshes (issue 13) along the same path at tau 1 and 8: `rqt` tiles with skirts
