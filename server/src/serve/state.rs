@@ -25,6 +25,9 @@ pub struct Terrain {
     /// The standard formats' view of the terrain, or why there is none (no georeference, or a
     /// CRS Relief cannot convert): `/cesium` and `/tiles` answer 404 with the reason.
     pub formats: Result<Formats, String>,
+    /// The heights and max/min-mip pyramids the queries run on (`/v1/query`, query sessions,
+    /// `/v1/raycast.png`), built with the terrain: about 0.15 s and 7 bytes per sample (4097 x 4097: 112 MB).
+    pub query: Result<crate::query::Terrain, String>,
 }
 
 /// What the standard formats need of a georeferenced terrain, built once when it is loaded.
@@ -77,10 +80,12 @@ impl Terrain {
             ],
         };
         let formats = Formats::new(&store);
+        let query = crate::query::Terrain::from_store(&store).map_err(|e| e.to_string());
         Terrain {
             store,
             info,
             formats,
+            query,
         }
     }
 }
