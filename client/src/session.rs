@@ -159,6 +159,11 @@ impl Session {
                 ServerMsg::Welcome(_) => {
                     return Err(ClientError::Protocol("a second welcome".into()));
                 }
+                ServerMsg::Answers(_) | ServerMsg::Refused(_) => {
+                    return Err(ClientError::Protocol(
+                        "query answers on a stream session".into(),
+                    ));
+                }
             };
             let started = Instant::now();
             let applied = self.stream.apply(

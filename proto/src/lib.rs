@@ -15,6 +15,8 @@
 //!   [`close`]: the reasons a session ends; [`snapshot`]: a cut in one bit per inner node.
 //! - [`errors`]: one-line error reports for the command lines.
 //! - [`path`]: the standard and stress camera paths.
+//! - [`query`]: terrain query batches and their answers (heights, HAT/HOT, rays, lines of
+//!   sight).
 //! - [`rng`]: a small seeded generator (splitmix64) for load plans, benchmarks and tests.
 //! - [`tile`]: the tile stream (paper 001): the tile pyramid's shape, tile bodies with crack
 //!   patches, tile deltas, the tile cache both ends keep, and snapshots of an active tile set.
@@ -35,6 +37,7 @@ pub mod msg;
 pub mod nodeset;
 mod paged;
 pub mod path;
+pub mod query;
 pub mod rng;
 pub mod snapshot;
 pub mod terrain;

@@ -9,6 +9,7 @@
 
 use crate::codec::{Decode, Encode};
 use crate::delta::{BodyError, Delta};
+use crate::query::{AnswerBatch, BatchRefused, QueryBatch};
 use crate::snapshot::Snapshot;
 use crate::terrain::TerrainGeometry;
 use crate::tile::TileSetInfo;
@@ -26,6 +27,9 @@ pub enum StreamKind {
     Vertex,
     /// The tile stream of paper 001: tiles with their crack patches ([`crate::tile`]).
     Tiles(TileStreamParams),
+    /// No stream: terrain queries ([`crate::query`]), batches answered in order. The hello's
+    /// lens, tau and budget are not used, and it must not resume.
+    Query,
 }
 
 /// How a tile session's cracks are closed: what its tile bodies carry.
@@ -281,6 +285,8 @@ pub enum ClientMsg {
         /// Sequence number of the newest applied delta.
         seq: u64,
     },
+    /// A batch of terrain queries (query sessions only).
+    Query(QueryBatch),
 }
 
 /// Messages from server to client.
@@ -295,6 +301,10 @@ pub enum ServerMsg {
         /// Milliseconds to wait before reconnecting.
         after_ms: u32,
     },
+    /// The answers to a query batch, in the batch's order.
+    Answers(AnswerBatch),
+    /// A query batch refused whole (over the limits); the session goes on.
+    Refused(BatchRefused),
 }
 #[cfg(test)]
 mod tests {

@@ -152,6 +152,7 @@ pub struct StageReport {
 pub(crate) fn stream_name(s: relief_proto::msg::StreamKind) -> String {
     match s {
         relief_proto::msg::StreamKind::Vertex => "vertex".into(),
+        relief_proto::msg::StreamKind::Query => "query".into(),
         relief_proto::msg::StreamKind::Tiles(p) => {
             let cache = if p.cache_tiles == u32::MAX {
                 "unlimited".to_string()

@@ -231,7 +231,7 @@ impl Session {
 /// The tile stream's parameters, for a tile session's config.
 pub(super) fn tile_params(config: &SessionConfig) -> Option<relief_proto::msg::TileStreamParams> {
     match config.stream {
-        StreamKind::Vertex => None,
+        StreamKind::Vertex | StreamKind::Query => None,
         StreamKind::Tiles(p) => Some(p),
     }
 }

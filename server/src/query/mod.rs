@@ -11,6 +11,7 @@
 //!   pyramid (figure 5), and the brute-force cell-by-cell march it is checked against.
 //! - [`los`]: line of sight between two points with a clearance.
 //! - [`hat`]: HAT/HOT for many entities.
+//! - [`batch`]: the wire's query batches ([`relief_proto::query`]) answered item by item.
 //!
 //! **Frame.** Queries take and give world metres in the project's frame (DESIGN.md section 2,
 //! [`relief_proto::tree::WorldFrame`]): x east from the westmost column, y north from the
@@ -28,6 +29,7 @@
 //! anyway ([`crate::store::Store::heights`]); keeping them in the file would grow every store
 //! and change its format for no faster start.
 
+pub mod batch;
 pub mod hat;
 pub mod los;
 pub mod pyramid;

@@ -101,13 +101,13 @@ pub fn not_modified(headers: &HeaderMap, etag: &str) -> Option<Response> {
     })
 }
 
-fn ready(state: &AppState) -> Result<Arc<Terrain>, ApiError> {
+pub(super) fn ready(state: &AppState) -> Result<Arc<Terrain>, ApiError> {
     state.terrain().ok_or(ApiError::NotReady)
 }
 
 /// Reads a whole request body of at most `max` bytes, within the body timeout: a client that
 /// sends its body slowly (or not at all) holds nothing for longer than that.
-async fn read_body(
+pub(super) async fn read_body(
     state: &AppState,
     body: Body,
     max: usize,

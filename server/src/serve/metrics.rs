@@ -63,6 +63,10 @@ pub struct Metrics {
     pub bytes_out_total: AtomicU64,
     /// Bytes of messages received on sessions.
     pub bytes_in_total: AtomicU64,
+    /// Query batches answered (`POST /v1/query` and query sessions).
+    pub query_batches_total: AtomicU64,
+    /// Queries answered, items of those batches.
+    pub queries_total: AtomicU64,
     /// Update computation time histogram: counts per bucket of [`LATENCY_BUCKETS`], then +Inf.
     update_buckets: [AtomicU64; LATENCY_BUCKETS.len() + 1],
     /// Sum of update computation times, microseconds.
@@ -132,6 +136,16 @@ impl Metrics {
             "relief_bytes_in_total",
             "Bytes of session messages received.",
             self.bytes_in_total.load(Relaxed),
+        );
+        counter(
+            "relief_query_batches_total",
+            "Query batches answered.",
+            self.query_batches_total.load(Relaxed),
+        );
+        counter(
+            "relief_queries_total",
+            "Queries answered (items of the batches, errors included).",
+            self.queries_total.load(Relaxed),
         );
         let _ = writeln!(
             s,

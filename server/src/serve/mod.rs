@@ -11,6 +11,8 @@
 //!   terrain-RGB and Terrarium PNGs with TileJSON).
 //! - [`pages`]: the CesiumJS and MapLibre pages (`/cesium/`, `/maplibre/`) and the npm
 //!   libraries they load (`/lib/...`, from `web/node_modules`).
+//! - [`query`]: terrain queries over HTTP (`POST /v1/query`), and the batch computation
+//!   query sessions share.
 //! - [`ws`]: the WebSocket upgrade and session admission.
 //! - [`session`]: one session's protocol (hello, welcome, flow, closes), generic over
 //!   `Sink + Stream`.
@@ -27,6 +29,7 @@ pub mod limits;
 pub mod listen;
 pub mod metrics;
 pub mod pages;
+pub mod query;
 pub mod router;
 pub mod session;
 pub mod source;

@@ -134,6 +134,7 @@ where
             m = receive(socket, state) => match m? {
                 None => return Ok(()),
                 Some(ClientMsg::Hello(_)) => return fail(CloseReason::Protocol, "a second hello"),
+                Some(ClientMsg::Query(_)) => return fail(CloseReason::Protocol, "query batches belong to query sessions (stream kind query)"),
                 Some(ClientMsg::Pose { seq, camera }) => {
                     let cam = validate::camera(&camera, &terrain.info).map_err(|e| (CloseReason::BadCamera, e))?;
                     if f.latest.is_none_or(|(s, _)| seq > s) {

@@ -14,9 +14,11 @@
 //!
 //! - [`io`]: receiving and sending one message, with the idle timeout and the close reasons.
 //! - [`flow`]: the loop after the welcome: coalescing, the window, the budget, the drain.
+//! - [`query`]: a query session's loop: batches answered in order.
 
 mod flow;
 mod io;
+mod query;
 #[cfg(test)]
 mod tests;
 
@@ -250,6 +252,9 @@ where
         Some(ClientMsg::Hello(h)) => h,
         Some(_) => return fail(CloseReason::Protocol, "the first message must be a hello"),
     };
+    if hello.kind == StreamKind::Query {
+        return query_session(socket, state, id, stats, &terrain, &hello).await;
+    }
     let tiles = matches!(hello.kind, StreamKind::Tiles(_));
     let (
         Opening {
@@ -266,20 +271,81 @@ where
     if resumed {
         state.metrics.resumes_total.fetch_add(1, Relaxed);
     }
-    let welcome = ServerMsg::Welcome(Welcome {
+    let welcome = welcome(state, id, &terrain, resumed, lod.digest(), tiles);
+    send(socket, state, stats, &welcome).await?;
+    state.metrics.sessions_active.fetch_add(1, Relaxed);
+    let r = stream_loop(socket, state, stats, &terrain, &mut lod, budget, turn).await;
+    state.metrics.sessions_active.fetch_sub(1, Relaxed);
+    r
+}
+
+/// The welcome of session `id`.
+fn welcome(
+    state: &AppState,
+    id: u64,
+    terrain: &Terrain,
+    resumed: bool,
+    digest: u64,
+    tiles: bool,
+) -> ServerMsg {
+    ServerMsg::Welcome(Welcome {
         version: PROTOCOL_VERSION,
         session_id: id,
         terrain: terrain.info.clone(),
         resumed,
-        digest: lod.digest(),
+        digest,
         max_in_flight: state.limits.max_in_flight,
         max_message_bytes: state.limits.max_message_bytes,
         idle_timeout_ms: state.limits.idle_timeout.as_millis().min(u32::MAX as u128) as u32,
         tiles: tiles.then(|| terrain.store.tile_info().clone()),
-    });
-    send(socket, state, stats, &welcome).await?;
+    })
+}
+
+/// A query session (`StreamKind::Query`) from its hello: no cut, no deltas; its welcome's
+/// digest is 0.
+async fn query_session<S, E>(
+    socket: &mut S,
+    state: &Arc<AppState>,
+    id: u64,
+    stats: &SessionStats,
+    terrain: &Arc<Terrain>,
+    hello: &Hello,
+) -> Ended
+where
+    S: Stream<Item = Result<Message, E>> + Sink<Message> + Unpin + Send,
+    E: StdError + Send + Sync + 'static,
+{
+    if hello.version != PROTOCOL_VERSION {
+        return fail(
+            CloseReason::Version,
+            format!(
+                "protocol version {} is not supported; this server speaks {PROTOCOL_VERSION}",
+                hello.version
+            ),
+        );
+    }
+    if hello.resume.is_some() {
+        return fail(
+            CloseReason::BadParams,
+            "a query session has no cut to resume: send no snapshot",
+        );
+    }
+    if let Err(e) = &terrain.query {
+        return fail(
+            CloseReason::Internal,
+            format!("this terrain cannot be queried: {e}"),
+        );
+    }
+    state.metrics.sessions_total.fetch_add(1, Relaxed);
+    send(
+        socket,
+        state,
+        stats,
+        &welcome(state, id, terrain, false, 0, false),
+    )
+    .await?;
     state.metrics.sessions_active.fetch_add(1, Relaxed);
-    let r = stream_loop(socket, state, stats, &terrain, &mut lod, budget, turn).await;
+    let r = query::query_loop(socket, state, stats, terrain).await;
     state.metrics.sessions_active.fetch_sub(1, Relaxed);
     r
 }

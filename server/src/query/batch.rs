@@ -1,0 +1,196 @@
+//! A batch of wire queries ([`relief_proto::query`]) answered against a [`Terrain`], item by
+//! item in order: the one function `POST /v1/query` and query sessions both call.
+
+use super::{Interp, QueryError, Ray, Sight, Terrain};
+use glam::DVec3;
+use relief_proto::query::{Answer, Fault, Query, RayHit};
+
+/// The wire fault and message of a query error.
+pub fn fault(e: &QueryError) -> Answer {
+    let fault = match e {
+        QueryError::NotFinite => Fault::NotFinite,
+        QueryError::Outside { .. } => Fault::Outside,
+        QueryError::ZeroDirection => Fault::ZeroDirection,
+        QueryError::Negative(_) => Fault::Negative,
+        // A grid that cannot be queried never becomes a served terrain.
+        QueryError::BadGrid(_) => Fault::Malformed,
+    };
+    Answer::Error {
+        fault,
+        message: e.to_string(),
+    }
+}
+
+/// The unit normal as the wire carries it.
+fn normal32(n: DVec3) -> [f32; 3] {
+    n.as_vec3().to_array()
+}
+
+impl Terrain {
+    /// The answer to one wire query.
+    pub fn answer(&self, q: &Query) -> Answer {
+        let r = match *q {
+            Query::Height {
+                at: [x, y],
+                bicubic,
+            } => {
+                let interp = if bicubic {
+                    Interp::Bicubic
+                } else {
+                    Interp::Bilinear
+                };
+                self.surface(x, y).and_then(|s| {
+                    Ok(Answer::Height {
+                        height: self.height_with(x, y, interp)?,
+                        normal: normal32(s.normal),
+                    })
+                })
+            }
+            Query::Hat { at } => self.hat_hot(DVec3::from_array(at)).map(|h| Answer::Hat {
+                hot: h.hot,
+                hat: h.hat,
+                normal: normal32(h.normal),
+            }),
+            Query::Ray {
+                origin,
+                dir,
+                max_dist,
+            } => self
+                .cast(&Ray {
+                    origin: DVec3::from_array(origin),
+                    dir: DVec3::from_array(dir),
+                    max_dist: max_dist.unwrap_or(f64::INFINITY),
+                })
+                .map(|h| {
+                    Answer::Ray(h.map(|h| RayHit {
+                        point: h.point.to_array(),
+                        distance: h.distance,
+                        normal: normal32(h.normal),
+                        cell: h.cell,
+                    }))
+                }),
+            Query::Sight {
+                from,
+                to,
+                clearance,
+            } => self
+                .line_of_sight(DVec3::from_array(from), DVec3::from_array(to), clearance)
+                .map(|s| match s {
+                    Sight::Visible => Answer::Sight {
+                        visible: true,
+                        blocked_at: None,
+                        distance: None,
+                    },
+                    Sight::Blocked { point, distance } => Answer::Sight {
+                        visible: false,
+                        blocked_at: Some(point.to_array()),
+                        distance: Some(distance),
+                    },
+                }),
+        };
+        r.unwrap_or_else(|e| fault(&e))
+    }
+
+    /// The answers to `queries`, one each in order, into `out` (cleared first).
+    pub fn answer_all(&self, queries: &[Query], out: &mut Vec<Answer>) {
+        out.clear();
+        out.extend(queries.iter().map(|q| self.answer(q)));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ramp() -> Terrain {
+        // 5 x 5 samples 10 m apart, rising 1 m per metre east: z = x.
+        let z: Vec<f32> = (0..25).map(|i| (i % 5) as f32 * 10.0).collect();
+        Terrain::new(5, 5, 10.0, 10.0, &z).unwrap()
+    }
+
+    #[test]
+    fn each_kind_is_answered_in_its_own_kind() {
+        let t = ramp();
+        let qs = [
+            Query::Height {
+                at: [15.0, 20.0],
+                bicubic: false,
+            },
+            Query::Hat {
+                at: [15.0, 20.0, 40.0],
+            },
+            Query::Ray {
+                origin: [0.0, 20.0, 30.0],
+                dir: [1.0, 0.0, 0.0],
+                max_dist: None,
+            },
+            Query::Sight {
+                from: [0.0, 20.0, 30.0],
+                to: [40.0, 20.0, 30.0],
+                clearance: 1.0,
+            },
+        ];
+        let mut out = Vec::new();
+        t.answer_all(&qs, &mut out);
+        assert!(matches!(out[0], Answer::Height { height, .. } if (height - 15.0).abs() < 1e-9));
+        assert!(matches!(out[1], Answer::Hat { hot, hat, .. }
+            if (hot - 15.0).abs() < 1e-9 && (hat - 25.0).abs() < 1e-9));
+        match &out[2] {
+            Answer::Ray(Some(h)) => assert!((h.distance - 30.0).abs() < 1e-9, "{h:?}"),
+            a => panic!("{a:?}"),
+        }
+        match &out[3] {
+            Answer::Sight {
+                visible: false,
+                distance: Some(d),
+                ..
+            } => assert!((d - 29.0).abs() < 1e-9, "{d}"),
+            a => panic!("{a:?}"),
+        }
+    }
+
+    #[test]
+    fn bad_items_get_their_own_faults() {
+        let t = ramp();
+        let cases = [
+            (
+                Query::Height {
+                    at: [f64::NAN, 0.0],
+                    bicubic: false,
+                },
+                Fault::NotFinite,
+            ),
+            (
+                Query::Hat {
+                    at: [-100.0, 0.0, 0.0],
+                },
+                Fault::Outside,
+            ),
+            (
+                Query::Ray {
+                    origin: [0.0; 3],
+                    dir: [0.0; 3],
+                    max_dist: None,
+                },
+                Fault::ZeroDirection,
+            ),
+            (
+                Query::Sight {
+                    from: [0.0; 3],
+                    to: [1.0; 3],
+                    clearance: -1.0,
+                },
+                Fault::Negative,
+            ),
+        ];
+        for (q, want) in cases {
+            match t.answer(&q) {
+                Answer::Error { fault, message } => {
+                    assert_eq!(fault, want, "{q:?}: {message}");
+                    assert!(!message.is_empty());
+                }
+                a => panic!("{q:?}: {a:?}"),
+            }
+        }
+    }
+}
