@@ -8,6 +8,7 @@
 //! - [`flight`]: one session flown along camera poses, recording latency and bytes over time.
 //! - [`fly`]: `relief-client fly`: one flight along a camera path, with its figures.
 //! - [`load`]: `relief-client load`: many sessions at once, with reports, plots and sweeps.
+//! - [`query`]: a query session: batches of terrain queries, pipelined, answered in order.
 //! - [`plot`]: PNG charts for load reports, drawn with plotters (embedded font, log axes, markers,
 //!   notes).
 //! - [`render`]: the wgpu renderer: GPU buffers that follow the mirror, the geomorph and terrain
@@ -21,6 +22,7 @@ pub mod fly;
 pub mod http;
 pub mod load;
 pub mod plot;
+pub mod query;
 pub mod render;
 pub mod server_url;
 pub mod session;

@@ -314,6 +314,16 @@ enum Command {
         /// tiles (without it they keep a light mirror that checks every tile and digest).
         #[arg(long)]
         mesh: bool,
+        /// Simulator back ends instead of viewers: each session asks, every tick (--rate per
+        /// second; 0: as soon as the last batch is answered), one batch of terrain queries:
+        /// `hat` for HAT/HOT of every entity, `ray=N` rays, `sight=N` lines of sight
+        /// (e.g. hat,ray=10,sight=10). The report gives queries/s, batch latency and the
+        /// server's CPU per query.
+        #[arg(long, value_name = "MIX", conflicts_with_all = ["soak", "mesh", "budget", "path"])]
+        queries: Option<relief_client::load::query::QueryMix>,
+        /// Entities each query back end moves over the terrain.
+        #[arg(long, default_value_t = 1000, requires = "queries")]
+        entities: usize,
         /// Run these session counts in turn (e.g. 10,100,500) and report the knee.
         #[arg(long, value_delimiter = ',')]
         sweep: Vec<usize>,
@@ -516,6 +526,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             seed,
             ramp,
             mesh,
+            queries,
+            entities,
             sweep,
             knee_ms,
             json,
@@ -551,6 +563,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                         rate_hz: stream.rate,
                         mesh,
                         progress: !quiet,
+                        queries: None,
                     },
                     sample_every,
                     warmup,
@@ -595,6 +608,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 rate_hz: stream.rate,
                 mesh,
                 progress: !quiet,
+                queries: queries.map(|mix| relief_client::load::query::QueryLoad { mix, entities }),
             };
             let counts = if sweep.is_empty() {
                 vec![sessions]

@@ -13,7 +13,8 @@
 //! Its configuration, errors, counters and link state are in `session/types.rs`; dialling,
 //! the handshake, backoff and the reconnect in `session/connect.rs`.
 
-use connect::{Ws, closed, decode, idle_of, tile_params};
+use connect::{Ws, idle_of, tile_params};
+pub(crate) use connect::{closed, decode, open_query};
 use futures_util::{SinkExt, StreamExt};
 use relief_proto::codec;
 use relief_proto::mesh::FanMesh;
@@ -25,6 +26,7 @@ use std::time::{Duration, Instant};
 use tokio_tungstenite::tungstenite::Message;
 
 mod connect;
+pub(crate) use connect::Ws as Socket;
 mod stream;
 mod types;
 pub use relief_proto::mirror::Change;

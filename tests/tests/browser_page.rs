@@ -379,6 +379,7 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
                 }));
             }
             ServerMsg::Reconnect { .. } => panic!("no drain here"),
+            ServerMsg::Answers(_) | ServerMsg::Refused(_) => panic!("no queries on a tile session"),
         }
     }
     let m = mirror.unwrap();

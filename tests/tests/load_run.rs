@@ -22,6 +22,7 @@ async fn fifty_sessions_for_ten_seconds_report_consistent_figures() {
         rate_hz: 10.0,
         mesh: true,
         progress: false,
+        queries: None,
     };
     let stages = load::run_sweep(&opts, &[50]).await.unwrap();
     let r = &stages[0];

@@ -43,6 +43,7 @@ async fn soak_three_minutes_of_cycling_sessions_keep_the_server_rss_flat() {
             rate_hz: 10.0,
             mesh: false,
             progress: false,
+            queries: None,
         },
         sample_every: Duration::from_secs(5),
         warmup,

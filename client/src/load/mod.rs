@@ -13,6 +13,7 @@
 //! - [`soak`]: `--soak DURATION`: sessions cycling (connect, fly, drop, resume) for a long,
 //!   bounded time while the server's resident memory is sampled and judged.
 
+pub mod query;
 pub mod report;
 pub mod soak;
 pub mod stats;
@@ -83,6 +84,9 @@ pub struct LoadOptions {
     pub mesh: bool,
     /// Show a progress bar.
     pub progress: bool,
+    /// Simulator back ends asking terrain queries instead of viewers streaming
+    /// ([`query`]): each session is a back end, each pose a batch.
+    pub queries: Option<query::QueryLoad>,
 }
 
 /// A load run that could not be made.
@@ -107,6 +111,10 @@ pub struct SessionOutcome {
     pub error: Option<String>,
     /// Seconds it flew.
     pub flown_s: f64,
+    /// Queries answered (query back ends).
+    pub queries: u64,
+    /// Of those, answered with an error (query back ends).
+    pub query_faults: u64,
 }
 
 /// One scrape of the server's `/metrics`.
@@ -124,6 +132,8 @@ pub struct ServerSample {
     pub updates: f64,
     /// `relief_sessions_total`.
     pub sessions_total: f64,
+    /// `relief_queries_total`.
+    pub queries: f64,
     /// `relief_resumes_total`.
     pub resumes: f64,
     /// `relief_bytes_out_total`.
@@ -157,6 +167,7 @@ pub async fn scrape(base: &str, t_s: f64) -> Result<ServerSample, HttpError> {
         sessions: get("relief_sessions_active"),
         updates: get("relief_updates_total"),
         sessions_total: get("relief_sessions_total"),
+        queries: get("relief_queries_total"),
         resumes: get("relief_resumes_total"),
         bytes_out: get("relief_bytes_out_total"),
         errors: m
@@ -244,6 +255,27 @@ fn check(opts: &LoadOptions) -> Result<(), LoadError> {
     if !(opts.rate_hz.is_finite() && opts.rate_hz >= 0.0) {
         return Err(LoadError::Options("--rate must be 0 or more".into()));
     }
+    if let Some(q) = opts.queries {
+        if q.entities == 0 {
+            return Err(LoadError::Options("--entities must be at least 1".into()));
+        }
+        let n = q.batch_len();
+        if n > relief_proto::query::MAX_BATCH {
+            return Err(LoadError::Options(format!(
+                "--entities {} with --queries {} makes batches of {n} queries; the server takes at most {}",
+                q.entities,
+                q.mix,
+                relief_proto::query::MAX_BATCH
+            )));
+        }
+        if q.mix.rays + q.mix.sights > relief_proto::query::MAX_BATCH_RAYS {
+            return Err(LoadError::Options(format!(
+                "--queries {}: at most {} rays and lines of sight per batch",
+                q.mix,
+                relief_proto::query::MAX_BATCH_RAYS
+            )));
+        }
+    }
     Ok(())
 }
 
@@ -309,7 +341,11 @@ pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
     check(opts)?;
     let base = http::base_of(&opts.url)?;
     let extent = terrain_extent(&base).await?;
-    let paths = paths(opts, extent).await?;
+    // Query back ends fly no path.
+    let paths = match opts.queries {
+        Some(_) => Vec::new(),
+        None => paths(opts, extent).await?,
+    };
     let before = scrape(&base, 0.0).await?;
     let t0 = Instant::now();
     let ramp_end = t0 + opts.ramp;
@@ -317,6 +353,18 @@ pub async fn run_stage(opts: &LoadOptions) -> Result<StageReport, LoadError> {
     let deltas = Arc::new(AtomicU64::new(0));
     let mut tasks = Vec::with_capacity(opts.sessions);
     for i in 0..opts.sessions {
+        if let Some(load) = opts.queries {
+            tasks.push(tokio::spawn(query::back_end(query::BackEnd {
+                opts: opts.clone(),
+                load,
+                index: i,
+                t0,
+                start: t0 + session_start(i, opts),
+                stop,
+                answered: deltas.clone(),
+            })));
+            continue;
+        }
         let mut config = SessionConfig::new(&opts.url);
         config.tau = opts.tau;
         config.budget = opts.budget;
@@ -440,6 +488,7 @@ mod tests {
             rate_hz,
             mesh: false,
             progress: false,
+            queries: None,
         }
     }
 

@@ -177,7 +177,13 @@ fn kib(b: f64) -> String {
 /// The Markdown summary.
 pub fn markdown(stages: &[StageReport], knee_p99_ms: f64, plots: &[(&str, &str)]) -> String {
     let mut s = String::from("# Relief load test\n\n");
-    if let Some(first) = stages.first() {
+    if let Some(first) = stages.first().filter(|r| r.stream.starts_with("query")) {
+        let _ = writeln!(
+            s,
+            "Back ends: {}, {} batches/s per back end (0: each as soon as the last is answered).\n",
+            first.stream, first.rate_hz,
+        );
+    } else if let Some(first) = stages.first() {
         let _ = writeln!(
             s,
             "Stream {}, path `{}`, tau {} px, {} poses/s per session, budget {}, fans {}.\n",
@@ -191,6 +197,37 @@ pub fn markdown(stages: &[StageReport], knee_p99_ms: f64, plots: &[(&str, &str)]
             if first.mesh { "rebuilt" } else { "not rebuilt" },
         );
     }
+    if stages.iter().any(|r| r.stream.starts_with("query")) {
+        query_table(&mut s, stages);
+    } else {
+        stream_table(&mut s, stages);
+    }
+    match knee(stages, knee_p99_ms) {
+        Some((n, why)) => {
+            let plural = if n == 1 { "" } else { "s" };
+            let _ = writeln!(s, "\n**Knee:** at {n} session{plural} ({why}).");
+        }
+        None => {
+            let _ = writeln!(
+                s,
+                "\n**Knee:** not reached: every stage kept p99 latency within {knee_p99_ms} ms with no errors or desyncs."
+            );
+        }
+    }
+    for r in stages.iter().filter(|r| !r.error_samples.is_empty()) {
+        let _ = writeln!(s, "\nErrors at {} sessions:", r.sessions);
+        for e in &r.error_samples {
+            let _ = writeln!(s, "- {e}");
+        }
+    }
+    for (file, caption) in plots {
+        let _ = writeln!(s, "\n## {caption}\n\n![{caption}]({file})");
+    }
+    s
+}
+
+/// The stream load test's table: one row per stage.
+fn stream_table(s: &mut String, stages: &[StageReport]) {
     s.push_str("| sessions | ok | errors | desyncs | reconnects | deltas/s | changes/s | aggregate KiB/s mean / p99 | per-session KiB/s mean / p99 | latency ms p50 / p90 / p99 / max | server CPU ms/update | server cores | RSS/session KiB |\n");
     s.push_str("|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     for r in stages {
@@ -217,26 +254,29 @@ pub fn markdown(stages: &[StageReport], knee_p99_ms: f64, plots: &[(&str, &str)]
             r.server.rss_per_session_bytes / 1024.0,
         );
     }
-    match knee(stages, knee_p99_ms) {
-        Some((n, why)) => {
-            let plural = if n == 1 { "" } else { "s" };
-            let _ = writeln!(s, "\n**Knee:** at {n} session{plural} ({why}).");
-        }
-        None => {
-            let _ = writeln!(
-                s,
-                "\n**Knee:** not reached: every stage kept p99 latency within {knee_p99_ms} ms with no errors or desyncs."
-            );
-        }
+}
+
+/// The query load test's table: one row per stage (a session is a back end, a pose a batch).
+fn query_table(s: &mut String, stages: &[StageReport]) {
+    s.push_str("| back ends | ok | errors | batches/s | queries/s | faults | latency ms p50 / p90 / p99 / max | server CPU us/query | server cores | KiB/s answers |\n");
+    s.push_str("|---|---|---|---|---|---|---|---|---|---|\n");
+    for r in stages {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} | {:.0} | {:.0} | {} | {:.2} / {:.2} / {:.2} / {:.2} | {:.3} | {:.2} | {} |",
+            r.sessions,
+            r.sessions_ok,
+            r.errors,
+            r.deltas_per_s,
+            r.queries_per_s,
+            r.query_faults,
+            r.latency_ms.p50,
+            r.latency_ms.p90,
+            r.latency_ms.p99,
+            r.latency_ms.max,
+            r.server.cpu_us_per_query,
+            r.server.cpu_utilisation,
+            kib(r.aggregate_bytes_per_s.mean),
+        );
     }
-    for r in stages.iter().filter(|r| !r.error_samples.is_empty()) {
-        let _ = writeln!(s, "\nErrors at {} sessions:", r.sessions);
-        for e in &r.error_samples {
-            let _ = writeln!(s, "- {e}");
-        }
-    }
-    for (file, caption) in plots {
-        let _ = writeln!(s, "\n## {caption}\n\n![{caption}]({file})");
-    }
-    s
 }

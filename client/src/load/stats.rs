@@ -74,6 +74,10 @@ pub struct ServerFigures {
     pub errors_by_kind: std::collections::BTreeMap<String, f64>,
     /// Message bytes the server sent during the stage.
     pub bytes_out: f64,
+    /// Queries the server answered during the stage (`relief_queries_total`).
+    pub queries: f64,
+    /// CPU microseconds per query answered (all of the process's CPU over queries).
+    pub cpu_us_per_query: f64,
 }
 
 /// One second of the stage, for the bandwidth plot.
@@ -146,6 +150,13 @@ pub struct StageReport {
     pub timeline: Vec<TimelinePoint>,
     /// Latency CDF: (milliseconds, fraction of poses at or below).
     pub latency_cdf: Vec<(f64, f64)>,
+    /// Query back ends: queries answered, all back ends.
+    pub queries: u64,
+    /// Query back ends: of those, answered with an error.
+    pub query_faults: u64,
+    /// Query back ends: queries answered per second, summed over back ends (each over the
+    /// time it ran).
+    pub queries_per_s: f64,
 }
 
 /// The stream in words: `vertex`, or e.g. `tiles (patches, cache 512)`.
@@ -183,7 +194,10 @@ pub fn summarise(
         budget: opts.budget,
         rate_hz: opts.rate_hz,
         mesh: opts.mesh,
-        stream: stream_name(opts.stream),
+        stream: match opts.queries {
+            Some(q) => format!("query ({}; {} entities per back end)", q.mix, q.entities),
+            None => stream_name(opts.stream),
+        },
         ..StageReport::default()
     };
     let mut firsts = Vec::new();
@@ -214,6 +228,11 @@ pub fn summarise(
             bins[s] += b as f64;
         }
         r.changes_per_s += o.log.changes as f64;
+        r.queries += o.queries;
+        r.query_faults += o.query_faults;
+        if o.flown_s > 0.0 {
+            r.queries_per_s += o.queries as f64 / o.flown_s;
+        }
     }
     r.errors = errors.len();
     errors.sort();
@@ -244,7 +263,14 @@ pub fn summarise(
             .map(|s| s.rss_bytes)
             .fold(a.rss_bytes, f64::max);
         let updates = b.updates - a.updates;
+        let queries = b.queries - a.queries;
         r.server = ServerFigures {
+            queries,
+            cpu_us_per_query: if queries > 0.0 {
+                (b.cpu_s - a.cpu_s) * 1e6 / queries
+            } else {
+                0.0
+            },
             cpu_s: b.cpu_s - a.cpu_s,
             updates,
             cpu_ms_per_update: if updates > 0.0 {
@@ -374,6 +400,7 @@ mod tests {
             rate_hz: 10.0,
             mesh: false,
             progress: false,
+            queries: None,
         }
     }
 
@@ -398,6 +425,7 @@ mod tests {
             },
             error: error.map(str::to_string),
             flown_s: 5.0,
+            ..SessionOutcome::default()
         }
     }
 
@@ -411,6 +439,7 @@ mod tests {
             sessions_total: 0.0,
             resumes: 0.0,
             bytes_out: 0.0,
+            queries: 0.0,
             errors: bad,
             errors_by_kind: [("bad_camera".to_string(), bad)].into_iter().collect(),
         }

@@ -16,9 +16,9 @@ use tokio_tungstenite::tungstenite::protocol::WebSocketConfig;
 use tokio_tungstenite::{MaybeTlsStream, WebSocketStream};
 
 /// A session's WebSocket.
-pub(super) type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
+pub(crate) type Ws = WebSocketStream<MaybeTlsStream<TcpStream>>;
 
-pub(super) fn decode(bytes: &[u8]) -> Result<ServerMsg, ClientError> {
+pub(crate) fn decode(bytes: &[u8]) -> Result<ServerMsg, ClientError> {
     codec::decode(bytes, codec::HARD_LIMIT).map_err(|e| ClientError::Protocol(e.to_string()))
 }
 
@@ -133,13 +133,29 @@ async fn handshake(config: &SessionConfig, resume: Option<Resume>) -> Result<Ope
     }
 }
 
+/// Opens a query session (`StreamKind::Query`) on `url`: one attempt, no retries (a load
+/// generator or a test wants to see a refusal, not hide it).
+pub(crate) async fn open_query(url: &str) -> Result<(Ws, relief_proto::msg::Welcome), ClientError> {
+    let config = SessionConfig {
+        stream: StreamKind::Query,
+        ..SessionConfig::new(url)
+    };
+    match handshake(&config, None).await? {
+        Opened::Welcome(ws, w, _) => Ok((*ws, w)),
+        Opened::Retry(last) => Err(ClientError::Connect {
+            url: url.to_string(),
+            last,
+        }),
+    }
+}
+
 /// The idle timeout a welcome announces (at least 100 ms, so pings never flood).
 pub(super) fn idle_of(w: &relief_proto::msg::Welcome) -> Duration {
     Duration::from_millis(u64::from(w.idle_timeout_ms).max(100))
 }
 
 /// A close worth retrying gives its text; any other is the session's end.
-pub(super) fn closed(code: u16, text: String) -> Result<String, ClientError> {
+pub(crate) fn closed(code: u16, text: String) -> Result<String, ClientError> {
     match CloseReason::from_code(code) {
         Some(r) if !r.retry() => Err(ClientError::Closed { code, text }),
         _ => Ok(format!("closed ({code}): {text}")),

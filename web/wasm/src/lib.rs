@@ -246,6 +246,9 @@ impl TileSession {
                 self.sent = c.sent as u32;
                 Ok("delta".into())
             }
+            ServerMsg::Answers(_) | ServerMsg::Refused(_) => {
+                Err(JsError::new("query answers on a tile session"))
+            }
             ServerMsg::Reconnect { after_ms } => {
                 self.reconnect_after_ms = after_ms;
                 Ok("reconnect".into())
