@@ -194,7 +194,7 @@ mod tests {
     use crate::codec::{decode, encode};
 
     #[test]
-    fn a_hat_query_is_25_bytes_and_its_answer_29() {
+    fn binary_sizes_are_as_documented() {
         let q = Query::Hat {
             at: [1.0, 2.0, 3.0],
         };
@@ -205,6 +205,25 @@ mod tests {
             normal: [0.0, 0.0, 1.0],
         };
         assert_eq!(encode(&a).len(), 29);
+        // The sizes docs/protocol.md section 16.1 gives for rays.
+        let ray = |max_dist| Query::Ray {
+            origin: [0.0; 3],
+            dir: [1.0; 3],
+            max_dist,
+        };
+        assert_eq!(encode(&ray(None)).len(), 50);
+        assert_eq!(encode(&ray(Some(5.0))).len(), 58);
+        let hit = |cell| {
+            Answer::Ray(Some(RayHit {
+                point: [0.0; 3],
+                distance: 1.0,
+                normal: [0.0, 0.0, 1.0],
+                cell,
+            }))
+        };
+        assert_eq!(encode(&hit([0, 250])).len(), 48);
+        assert_eq!(encode(&hit([4096, 60000])).len(), 52);
+        assert_eq!(encode(&Answer::Ray(None)).len(), 2);
     }
 
     #[test]
