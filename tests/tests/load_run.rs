@@ -97,3 +97,61 @@ async fn fifty_sessions_for_ten_seconds_report_consistent_figures() {
     assert!(md.contains("![Latency CDF](latency_cdf.png)"), "{md}");
     server.stop().await;
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn query_back_ends_report_queries_latency_and_server_cpu() {
+    let server = TestServer::start(Limits::default()).await;
+    let load = load::query::QueryLoad {
+        mix: "hat,ray=5,sight=5".parse().unwrap(),
+        entities: 200,
+    };
+    let opts = LoadOptions {
+        url: server.url(),
+        sessions: 4,
+        duration: Duration::from_secs(3),
+        ramp: Duration::from_millis(500),
+        path: LoadPath::Standard,
+        seed: 3,
+        tau: 1.0,
+        budget: None,
+        stream: relief_proto::msg::StreamKind::Query,
+        rate_hz: 20.0,
+        mesh: false,
+        progress: false,
+        queries: Some(load),
+    };
+    let stages = load::run_sweep(&opts, &[4]).await.unwrap();
+    let r = &stages[0];
+    assert_eq!((r.sessions_ok, r.errors), (4, 0), "{:?}", r.error_samples);
+    // 20 batches a second per back end for about 3.5 s, each answered.
+    assert!((200..=320).contains(&r.poses), "{} batches", r.poses);
+    assert_eq!(r.deltas, r.poses);
+    assert_eq!(r.queries, r.poses * load.batch_len() as u64);
+    // Entities over the terrain ask nothing that fails.
+    assert_eq!(r.query_faults, 0);
+    // What the back ends counted is what the server counted.
+    assert_eq!(r.queries as f64, r.server.queries, "{:?}", r.server);
+    assert!(r.server.cpu_us_per_query > 0.0 && r.queries_per_s > 0.0);
+    assert!(
+        r.latency_ms.samples > 150 && r.latency_ms.p99 < 1000.0,
+        "{:?}",
+        r.latency_ms
+    );
+    assert!(
+        r.stream
+            .starts_with("query (hat,ray=5,sight=5; 200 entities"),
+        "{}",
+        r.stream
+    );
+    let md = load::report::markdown(&stages, 50.0, &[]);
+    assert!(
+        md.contains("queries/s") && md.contains("server CPU us/query"),
+        "{md}"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let files = load::report::write_report(dir.path(), &stages, 50.0).unwrap();
+    for name in ["report.json", "summary.md", "latency_cdf.png"] {
+        assert!(files.contains(&dir.path().join(name)), "{name} not written");
+    }
+    server.stop().await;
+}
