@@ -100,6 +100,25 @@ pub fn build_cached_store(
     build(dem, path, &opts, Some(cache_key.to_string()))
 }
 
+/// The source as a store records it: each input by its file name, without its folder, so
+/// that the same DEM built from different places gives byte-identical stores (and one terrain
+/// id across replicas). Mosaics join their inputs with " + ".
+fn recorded_source(source: &str) -> String {
+    source
+        .split(" + ")
+        .map(|part| {
+            let p = Path::new(part);
+            match p.file_name() {
+                Some(name) if p.parent().is_some_and(|d| !d.as_os_str().is_empty()) => {
+                    name.to_string_lossy().to_string()
+                }
+                _ => part.to_string(),
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" + ")
+}
+
 fn build(
     dem: &Dem,
     path: &Path,
@@ -132,7 +151,7 @@ fn build(
         voids: &voids,
         tile_size,
         meta: StoreMeta {
-            source: dem.source.clone(),
+            source: recorded_source(&dem.source),
             crs: dem.crs.clone(),
             height_min: lo as f64,
             height_max: hi as f64,

@@ -49,20 +49,21 @@ pub enum SourceError {
     },
 }
 
-/// The key of a cache entry: what the DEM was (each file of a mosaic, in order, with its size
-/// and modification time) and every load option that changes the heights, the spacing or the
+/// The key of a cache entry: what the DEM was (each file of a mosaic, in order, by its name,
+/// size and CRC-32 of its contents) and every load option that changes the heights, the spacing or the
 /// georeference.
 pub fn cache_key<S: AsRef<str>>(specs: &[S], opts: &LoadOptions) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
     specs.len().hash(&mut h);
     for spec in specs {
         let spec = spec.as_ref();
-        spec.hash(&mut h);
-        if let Ok(m) = std::fs::metadata(spec) {
-            m.len().hash(&mut h);
-            if let Ok(t) = m.modified() {
-                t.hash(&mut h);
-            }
+        match file_digest(spec) {
+            // A file by its name and contents, not its folder or its time: replicas that
+            // fetched the same DEM into different places, at different times, build the
+            // same store (and so serve the same terrain id, and resume each other's
+            // sessions).
+            Some((name, len, crc)) => (name, len, crc).hash(&mut h),
+            None => spec.hash(&mut h),
         }
     }
     // What changes the heights or the spacing changes the store.
@@ -104,6 +105,30 @@ pub fn cached_store_path<S: AsRef<str>>(
         stem.push_str(&format!("+{}", specs.len() - 1));
     }
     cache_dir.join(format!("{stem}-{:016x}.relief", cache_key(specs, opts)))
+}
+
+/// A DEM file's name, length and CRC-32 of its contents; `None` when `spec` is not a readable
+/// file (a synthetic terrain, or a file the loader will report missing).
+fn file_digest(spec: &str) -> Option<(String, u64, u32)> {
+    use std::io::Read;
+    let path = Path::new(spec);
+    let mut f = std::fs::File::open(path).ok()?;
+    if !f.metadata().ok()?.is_file() {
+        return None;
+    }
+    let mut crc = crc32fast::Hasher::new();
+    let mut buf = vec![0u8; 1 << 20];
+    let mut len = 0u64;
+    loop {
+        let n = f.read(&mut buf).ok()?;
+        if n == 0 {
+            break;
+        }
+        crc.update(&buf[..n]);
+        len += n as u64;
+    }
+    let name = path.file_name()?.to_string_lossy().to_string();
+    Some((name, len, crc.finalize()))
 }
 
 /// Fails early, before the server listens, for a store file that is not there.
@@ -206,6 +231,53 @@ mod tests {
             std::fs::metadata(&path).unwrap().modified().unwrap(),
             before
         );
+    }
+
+    #[test]
+    fn one_dem_in_two_places_builds_byte_identical_stores() {
+        // Issue 17: replicas that fetched the same DEM into different folders, at different
+        // times, must build the same store and so serve the same terrain id.
+        let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+        let fa = a.path().join("fuji.tif");
+        std::fs::write(&fa, dem::EMBEDDED_FUJI).unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        let fb = b.path().join("sub").join("fuji.tif");
+        std::fs::create_dir_all(fb.parent().unwrap()).unwrap();
+        std::fs::write(&fb, dem::EMBEDDED_FUJI).unwrap();
+        let built = |file: &Path, cache: &Path| {
+            let spec = vec![file.to_str().unwrap().to_string()];
+            let src = TerrainSource::Dem(spec.clone(), LoadOptions::default());
+            let s = open_terrain(&src, cache).unwrap();
+            let bytes =
+                std::fs::read(cached_store_path(cache, &spec, &LoadOptions::default())).unwrap();
+            (s.terrain_id(), s.meta().source.clone(), bytes)
+        };
+        let (id_a, src_a, bytes_a) = built(&fa, &a.path().join("cache"));
+        let (id_b, src_b, bytes_b) = built(&fb, &b.path().join("cache"));
+        assert_eq!(src_a, "fuji.tif");
+        assert_eq!((id_a, &src_a), (id_b, &src_b));
+        assert!(bytes_a == bytes_b, "the two stores differ");
+        // The embedded terrain, built twice from scratch, likewise.
+        let (c, d) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+        let one = open_terrain(&TerrainSource::Embedded, c.path()).unwrap();
+        let two = open_terrain(&TerrainSource::Embedded, d.path()).unwrap();
+        assert_eq!(one.terrain_id(), two.terrain_id());
+        let file = |dir: &Path| {
+            std::fs::read(cached_store_path(
+                dir,
+                &[dem::EMBEDDED_SPEC],
+                &LoadOptions::default(),
+            ))
+            .unwrap()
+        };
+        assert!(file(c.path()) == file(d.path()));
+        // A DEM whose contents differ is another store.
+        let mut other = dem::EMBEDDED_FUJI.to_vec();
+        let n = other.len();
+        other[n - 1] ^= 1;
+        std::fs::write(&fb, &other).unwrap();
+        let key = |f: &Path| cache_key(&[f.to_str().unwrap()], &LoadOptions::default());
+        assert_ne!(key(&fa), key(&fb));
     }
 
     #[test]
