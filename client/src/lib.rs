@@ -5,6 +5,8 @@
 //! - [`http`]: a small HTTP/1.1 client for the server's HTTP endpoints.
 //! - [`server_url`]: `--server` parsed once: the stream URL and the HTTP base, and errors in
 //!   words.
+//! - [`chaos`]: `relief-client chaos`: the replica drill (sessions and queries through a load
+//!   balancer while replicas are killed or restarted).
 //! - [`flight`]: one session flown along camera poses, recording latency and bytes over time.
 //! - [`fly`]: `relief-client fly`: one flight along a camera path, with its figures.
 //! - [`load`]: `relief-client load`: many sessions at once, with reports, plots and sweeps.
@@ -17,6 +19,7 @@
 //!
 //! The cut mirror, the fan builder and the geomorph rule themselves live in `relief-proto`
 //! (`mirror`, `mesh`), where the server's benchmarks replay deltas with them too.
+pub mod chaos;
 pub mod flight;
 pub mod fly;
 pub mod http;

@@ -269,6 +269,41 @@ enum Command {
     /// server's CPU and memory; with --sweep, run stages of growing size and find the knee; with
     /// --soak, cycle sessions for a long, bounded time and judge the server's memory.
     #[command(after_long_help = SOAK_HELP)]
+    /// The replica drill (deploy/README.md): sessions, half vertex and half tiles, fly the
+    /// standard loop in lock step through a load balancer, and a prober asks POST /v1/query,
+    /// while each --action runs when the fleet has flown its fraction of the poses (e.g. kill a
+    /// replica, restart it). Prints lost sessions, desyncs, reconnections and their gaps, and
+    /// the queries answered; exits non-zero if a session was lost or desynced or started
+    /// afresh instead of resuming.
+    Chaos {
+        /// The load balancer: ws://HOST:PORT or http://HOST:PORT (a bare HOST:PORT works too).
+        #[arg(
+            long,
+            env = "RELIEF_SERVER",
+            default_value = "ws://127.0.0.1:8080/v1/stream"
+        )]
+        server: String,
+        /// Sessions: the first half vertex, the rest tiles.
+        #[arg(long, default_value_t = 200)]
+        sessions: usize,
+        /// Poses of the standard loop each session flies.
+        #[arg(long, default_value_t = 300)]
+        poses: usize,
+        /// FRACTION:COMMAND, run with `sh -c` when the fleet has flown that fraction of its
+        /// poses, e.g. `0.3:'kubectl delete pod relief-0 --grace-period=0 --force'`. Repeat
+        /// for more; they run in order of their fractions.
+        #[arg(long, value_parser = parse_action)]
+        action: Vec<(f64, String)>,
+        /// Milliseconds between the prober's queries (0: no prober).
+        #[arg(long, default_value_t = 100)]
+        query_every_ms: u64,
+        /// Seconds a session may take to reconnect before it counts as lost.
+        #[arg(long, default_value_t = 30.0)]
+        reconnect_deadline: f64,
+        /// Write the report as JSON to this file.
+        #[arg(long)]
+        json: Option<PathBuf>,
+    },
     Load {
         #[command(flatten)]
         stream: StreamArgs,
@@ -514,6 +549,48 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let report = rt.block_on(fly::fly(&opts))?;
             print_json(&report, json)?;
         }
+        Command::Chaos {
+            server,
+            sessions,
+            poses,
+            action,
+            query_every_ms,
+            reconnect_deadline,
+            json,
+        } => {
+            anyhow::ensure!(
+                reconnect_deadline.is_finite() && reconnect_deadline > 0.0,
+                "--reconnect-deadline must be a positive number of seconds"
+            );
+            let url = relief_client::server_url::ServerUrl::parse(&server)?;
+            let opts = relief_client::chaos::ChaosOptions {
+                url: url.stream(),
+                sessions,
+                poses,
+                actions: action,
+                query_every: (query_every_ms > 0).then(|| Duration::from_millis(query_every_ms)),
+                reconnect_deadline: Duration::from_secs_f64(reconnect_deadline),
+            };
+            let report = rt
+                .block_on(relief_client::chaos::run(
+                    &opts,
+                    &mut relief_client::chaos::ShellDrill,
+                ))
+                .map_err(anyhow::Error::msg)?;
+            if let Some(path) = json {
+                std::fs::write(&path, serde_json::to_string_pretty(&report)?)
+                    .with_context(|| format!("cannot write {}", path.display()))?;
+            }
+            println!("{}", relief_client::chaos::summary(&report));
+            anyhow::ensure!(
+                report.lost == 0 && report.desyncs == 0 && report.resumes == report.reconnects,
+                "the drill failed: {} lost, {} desyncs, {} of {} reconnections resumed",
+                report.lost,
+                report.desyncs,
+                report.resumes,
+                report.reconnects
+            );
+        }
         Command::Load {
             stream,
             sessions,
@@ -630,4 +707,21 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Parses `FRACTION:COMMAND`.
+fn parse_action(s: &str) -> Result<(f64, String), String> {
+    let (at, cmd) = s
+        .split_once(':')
+        .ok_or_else(|| format!("{s:?} is not FRACTION:COMMAND, e.g. 0.3:'kill -9 1234'"))?;
+    let at: f64 = at
+        .trim()
+        .parse()
+        .map_err(|_| format!("{s:?}: {at:?} is not a fraction from 0 to 1"))?;
+    if !(0.0..=1.0).contains(&at) || cmd.trim().is_empty() {
+        return Err(format!(
+            "{s:?}: want a fraction from 0 to 1, then a command"
+        ));
+    }
+    Ok((at, cmd.to_string()))
 }

@@ -59,6 +59,9 @@ pub struct Session {
     generation: u64,
     /// Connected or not, shared.
     link: std::sync::Arc<Link>,
+    /// How long each reconnection took, from noticing the drop to the new welcome,
+    /// milliseconds.
+    gaps_ms: Vec<f64>,
 }
 
 impl Session {
@@ -86,6 +89,7 @@ impl Session {
                 ..Counters::default()
             },
             generation: 0,
+            gaps_ms: Vec::new(),
             link,
         })
     }
@@ -350,5 +354,16 @@ impl Session {
     /// Counters over the session's life.
     pub fn counters(&self) -> Counters {
         self.counters
+    }
+
+    /// How long each reconnection took, from noticing the drop to the new welcome,
+    /// milliseconds, in order.
+    pub fn reconnect_gaps_ms(&self) -> &[f64] {
+        &self.gaps_ms
+    }
+
+    /// Digest of the mirrored cut (vertex stream) or active tile set (tile stream).
+    pub fn digest(&self) -> u64 {
+        self.stream.digest()
     }
 }

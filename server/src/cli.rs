@@ -13,6 +13,7 @@ use clap::{Parser, Subcommand};
 use relief_proto::path::PathKind;
 use std::path::PathBuf;
 
+mod health;
 mod info;
 
 #[derive(Parser)]
@@ -41,7 +42,8 @@ enum Command {
         /// `tiles/12/*/*.png`: they must share a CRS and grid step and lie on one grid; the
         /// store covers the box around them, samples none covers are voids (filled like the
         /// others), and where files overlap (neighbouring .hgt files share an edge row or
-        /// column) the later file's heights win, except its voids.
+        /// column) the later file's heights win, except its voids. `embedded` is the terrain
+        /// `serve` uses by default (a Mt Fuji crop built into the binary).
         #[arg(required = true, num_args = 1.., value_name = "INPUT")]
         inputs: Vec<String>,
         /// Where to write the store.
@@ -88,6 +90,16 @@ enum Command {
               default_value_t = FractalParams::default().rough,
               value_parser = info::dimension_arg, allow_negative_numbers = true)]
         rough: f32,
+    },
+    /// Ask a running server whether it is healthy: GET the URL and exit 0 on 200, 1 on anything
+    /// else (a container's HEALTHCHECK: the image has no curl).
+    Health {
+        /// What to ask.
+        #[arg(long, default_value = "http://127.0.0.1:8080/healthz")]
+        url: String,
+        /// Seconds to wait for the answer.
+        #[arg(long, default_value_t = 3.0)]
+        timeout: f64,
     },
     /// Benchmarks.
     Bench {
@@ -407,6 +419,16 @@ fn run() -> anyhow::Result<()> {
                 samples / rep.tree_s.max(1e-9) / 1e6,
                 rep.tiles_s
             );
+        }
+        Command::Health { url, timeout } => {
+            anyhow::ensure!(
+                timeout.is_finite() && timeout > 0.0,
+                "--timeout must be a positive number of seconds"
+            );
+            let status = health::get_status(&url, std::time::Duration::from_secs_f64(timeout))?;
+            if status != 200 {
+                anyhow::bail!("{url} answered {status}");
+            }
         }
         Command::Info {
             store,

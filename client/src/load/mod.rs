@@ -186,7 +186,7 @@ pub async fn scrape(base: &str, t_s: f64) -> Result<ServerSample, HttpError> {
 }
 
 /// The terrain's extent, from `GET /v1/terrain`.
-async fn terrain_extent(base: &str) -> Result<(f32, f32), LoadError> {
+pub(crate) async fn terrain_extent(base: &str) -> Result<(f32, f32), LoadError> {
     let t = http::get_json(&format!("{base}/v1/terrain")).await?;
     let e = t["extent_m"]
         .as_array()

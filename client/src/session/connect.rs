@@ -198,6 +198,7 @@ impl Session {
 
     /// Reconnects, resuming from the mirror's cut unless `fresh`, and sends the last pose again.
     pub(super) async fn reconnect(&mut self, fresh: bool) -> Result<(), ClientError> {
+        let dropped = Instant::now();
         self.ws = None;
         self.counters.reconnects += 1;
         self.link.set(Some("connection lost; reconnecting".into()));
@@ -237,6 +238,7 @@ impl Session {
         self.idle_timeout = idle_of(&w);
         self.ws = Some(ws);
         self.link.set(None);
+        self.gaps_ms.push(dropped.elapsed().as_secs_f64() * 1e3);
         if let Some((_, cam)) = self.last_pose {
             self.send_pose(cam).await?;
         }

@@ -138,7 +138,7 @@ impl StreamState {
     }
 
     /// Digest of the mirrored cut or active tile set.
-    pub(super) fn digest(&self) -> u64 {
+    pub(crate) fn digest(&self) -> u64 {
         match self {
             StreamState::Vertex(v) => v.mirror.cut().digest(),
             StreamState::Tiles(t) => t.mirror.digest(),

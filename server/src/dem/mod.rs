@@ -255,6 +255,10 @@ fn sniff(path: &str, head: &[u8]) -> Option<Format> {
 /// or an SRTM `.hgt` file (recognised by its first bytes, else by extension), and fills its
 /// voids.
 pub fn load(spec: &str, opts: &LoadOptions) -> Result<Dem, DemError> {
+    if spec == "embedded" || spec == EMBEDDED_SPEC {
+        check_tile_options(spec, "the embedded terrain", opts)?;
+        return embedded_default();
+    }
     if let Some(rest) = spec.strip_prefix("synthetic:") {
         check_tile_options(spec, "a synthetic terrain", opts)?;
         return synthetic::load(spec, rest, opts);

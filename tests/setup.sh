@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Installs and builds what the test suite needs beyond the Rust toolchain (run as root, as CI
+# does; the README's test command runs this, then `cargo test --release --workspace`):
+# - Debian packages: Mesa's software Vulkan driver (lavapipe) for the renderer's tests, make for
+#   jemalloc, Chromium for the browser tests, HAProxy for the scale-out test, musl-tools for the
+#   static server, python3-venv for the deploy validators; Node.js and npm where `node` is
+#   missing (the browser tests need Node.js 20 or newer);
+# - the npm packages of web/ (pinned by web/package-lock.json);
+# - a check that the browser page's committed WebAssembly (web/page/pkg/) is what
+#   web/build-wasm.sh builds from the sources now;
+# - the deploy validators (deploy/requirements.txt) in target/deploy-venv;
+# - the static (musl) server of deploy/Dockerfile, target/x86_64-unknown-linux-musl/dist/.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+apt-get update
+apt-get install -y mesa-vulkan-drivers make chromium haproxy musl-tools python3-venv
+command -v node >/dev/null || apt-get install -y nodejs npm
+npm ci --prefix web
+bash web/build-wasm.sh --check
+if [ ! -x target/deploy-venv/bin/kubernetes-validate ]; then
+    python3 -m venv target/deploy-venv
+    target/deploy-venv/bin/pip install --quiet --requirement deploy/requirements.txt
+fi
+rustup target add x86_64-unknown-linux-musl
+cargo build --locked --profile dist --target x86_64-unknown-linux-musl -p relief-server
