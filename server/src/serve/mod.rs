@@ -11,6 +11,7 @@
 //!   terrain-RGB and Terrarium PNGs with TileJSON).
 //! - [`pages`]: the CesiumJS and MapLibre pages (`/cesium/`, `/maplibre/`) and the npm
 //!   libraries they load (`/lib/...`, from `web/node_modules`).
+//! - [`raycast`]: `/v1/raycast.png`, a ray-cast picture of a camera's view.
 //! - [`ws`]: the WebSocket upgrade and session admission.
 //! - [`session`]: one session's protocol (hello, welcome, flow, closes), generic over
 //!   `Sink + Stream`.
@@ -27,6 +28,7 @@ pub mod limits;
 pub mod listen;
 pub mod metrics;
 pub mod pages;
+pub mod raycast;
 pub mod router;
 pub mod session;
 pub mod source;
