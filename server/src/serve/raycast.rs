@@ -168,4 +168,17 @@ mod tests {
         assert!(parse_fov("0").is_err());
         assert!(parse_fov("NaN").is_err());
     }
+
+    #[tokio::test]
+    async fn answers_503_before_the_terrain_is_ready() {
+        let (_tx, rx) = tokio::sync::watch::channel(false);
+        let state = Arc::new(AppState::new(Default::default(), rx));
+        let req = axum::http::Request::get("/v1/raycast.png?camera=0,0,100,0,-10")
+            .body(axum::body::Body::empty())
+            .unwrap();
+        let r = tower::ServiceExt::oneshot(super::super::router::app(state), req)
+            .await
+            .unwrap();
+        assert_eq!(r.status(), axum::http::StatusCode::SERVICE_UNAVAILABLE);
+    }
 }
