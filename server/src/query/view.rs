@@ -24,9 +24,11 @@
 //! the client's default sky ([`SKY_RGB8`]) where a ray hits nothing. The constants are
 //! duplicated, not shared: the WGSL holds them as literals, and the end-to-end test
 //! (`tests/tests/raycast_shot.rs`) checks that the shader's text still holds these values.
-//! Two things differ by design: the normal is the exact surface's (the renderer uses the
-//! smoothed normal of the drawn mesh, or its flat triangle normal), and the height is the
-//! exact surface's (the renderer interpolates the LOD mesh's vertices).
+//! The height is the exact surface's (the renderer interpolates the LOD mesh's vertices). The
+//! normal is smooth, as the renderer's is, but of the full grid: each sample's normal by
+//! central differences, blended bilinearly over the hit's cell (the renderer blends the normals
+//! it sums at the drawn mesh's vertices). The bilinear patch's own normal would show every
+//! cell as a facet up close, and differs from the shot twice as much.
 
 use super::{Hit, QueryError, Ray, Terrain};
 use glam::{DVec3, Vec3};
@@ -197,6 +199,31 @@ fn on_a_wall(terrain: &Terrain, hit: &Hit) -> bool {
     terrain.height(p.x, p.y).is_ok_and(|h| p.z < h - WALL_DEPTH)
 }
 
+/// The smooth normal at world `(x, y)`: the samples' normals (by central differences, one-sided
+/// on the border) blended bilinearly over the cell, as the renderer blends its vertices'
+/// normals, so that the cells do not show as facets.
+fn smooth_normal(terrain: &Terrain, x: f64, y: f64) -> DVec3 {
+    let (w, h) = terrain.size();
+    let (dx, dy) = terrain.spacing();
+    let (cx, cy) = (f64::from(w - 1), f64::from(h - 1));
+    let (u, v) = ((x / dx).clamp(0.0, cx), (y / dy).clamp(0.0, cy));
+    let (i, j) = (u.floor().min(cx - 1.0), v.floor().min(cy - 1.0));
+    let (a, b) = (u - i, v - j);
+    let z = |i: f64, j: f64| terrain.height(i * dx, j * dy).unwrap_or(0.0);
+    let at = |i: f64, j: f64| {
+        let (w0, e0) = ((i - 1.0).max(0.0), (i + 1.0).min(cx));
+        let (s0, n0) = ((j - 1.0).max(0.0), (j + 1.0).min(cy));
+        let gx = (z(e0, j) - z(w0, j)) / ((e0 - w0) * dx);
+        let gy = (z(i, n0) - z(i, s0)) / ((n0 - s0) * dy);
+        DVec3::new(-gx, -gy, 1.0).normalize()
+    };
+    let n = at(i, j) * ((1.0 - a) * (1.0 - b))
+        + at(i + 1.0, j) * (a * (1.0 - b))
+        + at(i, j + 1.0) * ((1.0 - a) * b)
+        + at(i + 1.0, j + 1.0) * (a * b);
+    n.normalize()
+}
+
 /// The picture of `terrain` from `camera` through `lens`, `lens.width` x `lens.height` RGBA
 /// pixels, rows top first, cast on `threads` threads (at least 1).
 pub fn render(
@@ -221,9 +248,12 @@ pub fn render(
             for (px, out) in row.chunks_exact_mut(4).enumerate() {
                 let ray = pin.ray(px as u32, py);
                 let rgba = match terrain.cast(&ray)? {
-                    Some(hit) if !on_a_wall(terrain, &hit) => {
-                        shade(hit.point.z, hit.normal, hit.point.distance(pin.eye), fog)
-                    }
+                    Some(hit) if !on_a_wall(terrain, &hit) => shade(
+                        hit.point.z,
+                        smooth_normal(terrain, hit.point.x, hit.point.y),
+                        hit.point.distance(pin.eye),
+                        fog,
+                    ),
                     _ => [SKY_RGB8[0], SKY_RGB8[1], SKY_RGB8[2], 255],
                 };
                 out.copy_from_slice(&rgba);
@@ -309,6 +339,29 @@ mod tests {
                 .unwrap()
                 .is_some()
         );
+    }
+
+    #[test]
+    fn smooth_normals_of_a_plane_are_its_normal() {
+        // z = 0.3 x - 0.2 y: central and one-sided differences are exact, inside and on the
+        // border.
+        let (w, h, dx, dy) = (9u32, 7u32, 10.0, 20.0);
+        let z: Vec<f32> = (0..h)
+            .flat_map(|r| (0..w).map(move |c| (c, h - 1 - r)))
+            .map(|(c, j)| (0.3 * dx * f64::from(c) - 0.2 * dy * f64::from(j)) as f32)
+            .collect();
+        let t = Terrain::new(w, h, dx, dy, &z).unwrap();
+        let want = DVec3::new(-0.3, 0.2, 1.0).normalize();
+        for (x, y) in [
+            (0.0, 0.0),
+            (80.0, 120.0),
+            (33.3, 57.1),
+            (80.0, 5.0),
+            (1.0, 120.0),
+        ] {
+            let n = smooth_normal(&t, x, y);
+            assert!(n.distance(want) < 1e-6, "({x}, {y}): {n}");
+        }
     }
 
     #[test]
