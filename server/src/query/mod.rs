@@ -12,6 +12,8 @@
 //! - [`los`]: line of sight between two points with a clearance.
 //! - [`hat`]: HAT/HOT for many entities.
 //! - [`batch`]: the wire's query batches ([`relief_proto::query`]) answered item by item.
+//! - [`view`]: a picture of a camera's view, one ray per pixel, shaded like the client's
+//!   renderer (`GET /v1/raycast.png`).
 //!
 //! **Frame.** Queries take and give world metres in the project's frame (DESIGN.md section 2,
 //! [`relief_proto::tree::WorldFrame`]): x east from the westmost column, y north from the
@@ -35,6 +37,7 @@ pub mod los;
 pub mod pyramid;
 pub mod ray;
 pub mod surface;
+pub mod view;
 
 #[cfg(test)]
 mod tests;

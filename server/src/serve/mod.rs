@@ -13,6 +13,7 @@
 //!   libraries they load (`/lib/...`, from `web/node_modules`).
 //! - [`query`]: terrain queries over HTTP (`POST /v1/query`), and the batch computation
 //!   query sessions share.
+//! - [`raycast`]: `/v1/raycast.png`, a ray-cast picture of a camera's view.
 //! - [`ws`]: the WebSocket upgrade and session admission.
 //! - [`session`]: one session's protocol (hello, welcome, flow, closes), generic over
 //!   `Sink + Stream`.
@@ -30,6 +31,7 @@ pub mod listen;
 pub mod metrics;
 pub mod pages;
 pub mod query;
+pub mod raycast;
 pub mod router;
 pub mod session;
 pub mod source;

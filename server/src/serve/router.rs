@@ -4,7 +4,8 @@
 use super::http::ApiError;
 use super::limits::Refusal;
 use super::state::AppState;
-use super::{formats, http, pages, query, tiles, ws};
+
+use super::{formats, http, pages, query, raycast, tiles, ws};
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
 use axum::http::{Method, header};
@@ -40,6 +41,7 @@ pub fn app(state: Arc<AppState>) -> Router {
         .route("/v1/lod", post(http::lod))
         .route("/v1/heights", post(http::heights))
         .route("/v1/query", post(query::query))
+        .route("/v1/raycast.png", get(raycast::image))
         .route("/v1/sessions", get(http::sessions))
         .route("/metrics", get(http::metrics))
         .route("/healthz", get(http::healthz))
