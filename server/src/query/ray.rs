@@ -66,9 +66,13 @@ pub struct Hit {
 /// rounding of the per-cell solution, far less than any terrain detail.
 const SKIP_MARGIN: f64 = 1e-6;
 
-/// Cells along its major axis that a ray is marched cell by cell before the pyramid is
-/// searched for the rest.
-const NEAR_CELLS: f64 = 6.0;
+/// Levels below the one the ray's height above the ground suggests that the traversal
+/// starts at.
+const START_BELOW: u32 = 1;
+
+/// Cells remembered as tried, so that the cells around the point where two stretches of the
+/// ray meet are not tried twice.
+const RECENT: usize = 4;
 
 /// A ray in grid units: `u = x / dx`, `v = y / dy` (rows from the south), `z` in metres, all
 /// against the distance `t` in metres along the unit direction.
@@ -270,21 +274,145 @@ impl Terrain {
         let (cx, cy) = self.cells();
         let (t0, t1) = r.slab(0.0, f64::from(cx), 0.0, f64::from(cy))?;
         let mut best = None;
-        // The first few cells one by one: a ray that hits there (a steep one) is done
-        // before a descent from the root would have reached it.
-        let per_cell = 1.0 / r.d[0].abs().max(r.d[1].abs());
-        let near = (t0 + NEAR_CELLS * per_cell).min(t1);
-        self.walk(r, 0, (t0, near), &mut best, |t, i, j, best| {
-            t.try_cell(r, i, j, best)
-        });
-        if near >= t1 || best.is_some_and(|b| b.t < near) {
-            return best;
-        }
         let top = self.pyramid.top_shift();
-        if top > 0 {
-            self.descend(r, top, 0, 0, (near, t1), &mut best);
+        let (mut t, mut l) = (t0, self.start_shift(r, t0, top));
+        let [mut x, mut y] = self.node_at(r, t, l);
+        // Which side of a node the ray leaves by: 1 where it goes east (north), else 0.
+        let ex = i64::from(r.d[0] > 0.0);
+        let ey = i64::from(r.d[1] > 0.0);
+        let sx = if r.d[0] >= 0.0 { 1 } else { -1 };
+        let sy = if r.d[1] >= 0.0 { 1 } else { -1 };
+        // The ray's lowest point over `[ta, tb]`.
+        let low = |ta: f64, tb: f64| r.z(if r.d[2] < 0.0 { tb } else { ta });
+        // The cells tried last, not to try them again where stretches meet.
+        let (mut recent, mut next) = ([u64::MAX; RECENT], 0usize);
+        loop {
+            let size = (1u64 << l) as f64;
+            // Where the ray leaves node (x, y): by its east or west side at `tx`, by its
+            // north or south side at `ty`, or out of the grid (or at its length) at `t1`.
+            let tx = if r.d[0] != 0.0 {
+                ((x + ex) as f64 * size - r.o[0]) * r.inv[0]
+            } else {
+                f64::INFINITY
+            };
+            let ty = if r.d[1] != 0.0 {
+                ((y + ey) as f64 * size - r.o[1]) * r.inv[1]
+            } else {
+                f64::INFINITY
+            };
+            let te = tx.min(ty).min(t1).max(t);
+            let max = if l == 0 {
+                let c = self.corners(x as u32, y as u32);
+                c[0].max(c[1]).max(c[2]).max(c[3])
+            } else {
+                f64::from(self.pyramid.max(l, x as u32, y as u32))
+            };
+            if low(t, te) > max + SKIP_MARGIN {
+                // Clear of the node: on to the next one, and a level up where that one lies
+                // in another parent.
+                if te >= t1 {
+                    break;
+                }
+                let (px, py) = (x >> 1, y >> 1);
+                if tx <= ty {
+                    x += sx;
+                }
+                if ty <= tx {
+                    y += sy;
+                }
+                t = te;
+                if l < top && (x >> 1 != px || y >> 1 != py) {
+                    (x, y, l) = (x >> 1, y >> 1, l + 1);
+                }
+            } else if l > 0 {
+                // Under the node's max somewhere: down to the child the ray is in at `t`.
+                let half = size / 2.0;
+                let bit = |o: f64, d: f64, inv: f64, k: i64| -> i64 {
+                    let mid = (2 * k + 1) as f64 * half;
+                    if d > 0.0 {
+                        i64::from(t >= (mid - o) * inv)
+                    } else if d < 0.0 {
+                        i64::from(t < (mid - o) * inv)
+                    } else {
+                        i64::from(o >= mid)
+                    }
+                };
+                let (bx, by) = (
+                    bit(r.o[0], r.d[0], r.inv[0], x),
+                    bit(r.o[1], r.d[1], r.inv[1], y),
+                );
+                l -= 1;
+                let (nw, nh) = self.pyramid.dims(l);
+                x = (2 * x + bx).min(i64::from(nw) - 1);
+                y = (2 * y + by).min(i64::from(nh) - 1);
+            } else {
+                // A cell the ray may meet: it and every cell touching the ray's stretch over
+                // it, tried (the march's walk over that stretch), each once.
+                self.walk(r, 0, (t, te), &mut best, |s, i, j, best| {
+                    let key = u64::from(i) | u64::from(j) << 32;
+                    if !recent.contains(&key) {
+                        recent[next % RECENT] = key;
+                        next += 1;
+                        s.try_cell(r, i, j, best);
+                    }
+                });
+                if te >= t1 {
+                    break;
+                }
+                let (px, py) = (x >> 1, y >> 1);
+                if tx <= ty {
+                    x += sx;
+                }
+                if ty <= tx {
+                    y += sy;
+                }
+                t = te;
+                if top > 0 && (x >> 1 != px || y >> 1 != py) {
+                    (x, y, l) = (x >> 1, y >> 1, l + 1);
+                }
+            }
+            if best.is_some_and(|b| t > b.t) {
+                break;
+            }
         }
         best
+    }
+
+    /// The shift to start at (paper 004, figure 6): about the cells the ray crosses while it
+    /// falls by its height above the ground where it enters the grid at `t`, up to `top`.
+    #[inline]
+    fn start_shift(&self, r: &GridRay, t: f64, top: u32) -> u32 {
+        if r.d[2] >= 0.0 {
+            return top;
+        }
+        let (cx, cy) = self.cells();
+        let u = (r.o[0] + r.d[0] * t).clamp(0.0, f64::from(cx - 1));
+        let v = (r.o[1] + r.d[1] * t).clamp(0.0, f64::from(cy - 1));
+        let h = r.z(t) - self.at(u as u32, v as u32);
+        let cells = h / -r.d[2] * r.d[0].abs().max(r.d[1].abs());
+        if cells >= 2.0 {
+            ((cells as u64).ilog2() - START_BELOW.min((cells as u64).ilog2())).min(top)
+        } else {
+            0
+        }
+    }
+
+    /// The node at shift `l` that the ray is in just after `t` (the one it is about to cross,
+    /// where `t` falls on a node's side).
+    #[inline]
+    fn node_at(&self, r: &GridRay, t: f64, l: u32) -> [i64; 2] {
+        let (nw, nh) = self.pyramid.dims(l);
+        let scale = 1.0 / (1u64 << l) as f64;
+        let at = |a: usize, n: u32| {
+            let p = (r.o[a] + r.d[a] * t) * scale;
+            let k = if r.d[a] < 0.0 {
+                p.ceil() - 1.0
+            } else {
+                p.floor()
+            };
+            (k.max(0.0) as i64).min(i64::from(n) - 1)
+        };
+        [at(0, nw), at(1, nh)]
     }
 
     /// Tries cell `(i, j)`, keeping the better hit in `best`.
@@ -294,102 +422,6 @@ impl Terrain {
             && h.before(best)
         {
             *best = Some(h);
-        }
-    }
-
-    /// Searches node `(x, y)` at shift `s >= 1` depth-first over the ray's stretch `seg`,
-    /// keeping the better hit in `best`.
-    fn descend(
-        &self,
-        r: &GridRay,
-        s: u32,
-        x: u32,
-        y: u32,
-        seg: (f64, f64),
-        best: &mut Option<CellHit>,
-    ) {
-        // Depth-first, nearest child on top: at most 3 siblings wait per level. Each entry
-        // passed the slab and max tests when pushed and keeps where its span begins.
-        let mut stack = [(0u32, 0u32, 0u32, 0f64); 4 * 33];
-        let Some(ta) = self.node_entry(r, s, x, y, seg) else {
-            return;
-        };
-        stack[0] = (s, x, y, ta);
-        let mut len = 1;
-        while len > 0 {
-            len -= 1;
-            let (s, x, y, ta) = stack[len];
-            if best.is_some_and(|b| ta > b.t) {
-                continue;
-            }
-            let cs = s - 1;
-            let (nw, nh) = self.pyramid.dims(cs);
-            let base = len;
-            for (kx, ky) in self.children(r, cs, x, y) {
-                if kx >= nw || ky >= nh {
-                    continue;
-                }
-                if cs == 0 {
-                    self.try_cell(r, kx, ky, best);
-                } else if let Some(t) = self.node_entry(r, cs, kx, ky, seg) {
-                    stack[len] = (cs, kx, ky, t);
-                    len += 1;
-                }
-            }
-            // Reverse what was just pushed, so that the nearest child is on top.
-            stack[base..len].reverse();
-        }
-    }
-
-    /// Where `r`'s span over node `(x, y)` at shift `s >= 1` within `seg` begins, unless the
-    /// ray misses the node there or stays above its max over that span.
-    #[inline]
-    fn node_entry(&self, r: &GridRay, s: u32, x: u32, y: u32, seg: (f64, f64)) -> Option<f64> {
-        let (cx, cy) = self.cells();
-        let u0 = (u64::from(x) << s) as f64;
-        let u1 = ((u64::from(x) + 1) << s).min(u64::from(cx)) as f64;
-        let v0 = (u64::from(y) << s) as f64;
-        let v1 = ((u64::from(y) + 1) << s).min(u64::from(cy)) as f64;
-        let (ta, tb) = r.slab(u0, u1, v0, v1)?;
-        let (ta, tb) = (ta.max(seg.0), tb.min(seg.1));
-        if ta > tb {
-            return None;
-        }
-        let max = f64::from(self.pyramid.max(s, x, y));
-        (r.z(ta).min(r.z(tb)) <= max + SKIP_MARGIN).then_some(ta)
-    }
-
-    /// The four children at shift `cs` of node `(x, y)` in the order the ray meets them:
-    /// near and far in each axis, the middle two by which half-plane the ray crosses first.
-    #[inline]
-    fn children(&self, r: &GridRay, cs: u32, x: u32, y: u32) -> [(u32, u32); 4] {
-        let (x0, y0) = (2 * x, 2 * y);
-        let (nx, fx) = if r.d[0] >= 0.0 {
-            (x0, x0 + 1)
-        } else {
-            (x0 + 1, x0)
-        };
-        let (ny, fy) = if r.d[1] >= 0.0 {
-            (y0, y0 + 1)
-        } else {
-            (y0 + 1, y0)
-        };
-        let um = ((u64::from(x0) + 1) << cs) as f64;
-        let vm = ((u64::from(y0) + 1) << cs) as f64;
-        let tx = if r.d[0] != 0.0 {
-            (um - r.o[0]) * r.inv[0]
-        } else {
-            f64::INFINITY
-        };
-        let ty = if r.d[1] != 0.0 {
-            (vm - r.o[1]) * r.inv[1]
-        } else {
-            f64::INFINITY
-        };
-        if tx <= ty {
-            [(nx, ny), (fx, ny), (nx, fy), (fx, fy)]
-        } else {
-            [(nx, ny), (nx, fy), (fx, ny), (fx, fy)]
         }
     }
 
@@ -421,7 +453,10 @@ impl Terrain {
         // The nodes whose closed extent meets `[a, b]` along one axis.
         let span = |a: f64, b: f64, n: u32| {
             let (lo, hi) = (a.min(b) / size, a.max(b) / size);
-            (ceil_minus_one(lo), (hi.max(0.0) as u32).min(n - 1))
+            (
+                ceil_minus_one(lo).min(n - 1),
+                (hi.max(0.0) as u32).min(n - 1),
+            )
         };
         let end = |k: u32, n: u32| ((u64::from(k) + 1) << s).min(u64::from(n)) as f64;
         let (ilo, ihi) = span(r.o[0] + r.d[0] * t0, r.o[0] + r.d[0] * t1, nw);
