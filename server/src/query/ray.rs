@@ -74,6 +74,10 @@ const START_BELOW: u32 = 1;
 /// ray meet are not tried twice.
 const RECENT: usize = 4;
 
+/// How near a grid line, relative to the coordinates' size, a point of the ray counts as on
+/// it: far more than their rounding, so that no cell the ray may touch there is missed.
+const NEAR: f64 = 1e-9;
+
 /// A ray in grid units: `u = x / dx`, `v = y / dy` (rows from the south), `z` in metres, all
 /// against the distance `t` in metres along the unit direction.
 #[derive(Clone, Copy, Debug)]
@@ -159,6 +163,18 @@ impl GridRay {
         let ta = a0.max(b0).max(0.0);
         let tb = a1.min(b1).min(self.tmax);
         (ta <= tb).then_some((ta, tb))
+    }
+
+    /// Whether the ray's stretch over `[ta, tb]` runs along a grid line, within rounding:
+    /// both ends on the same line of constant `u` or `v`.
+    #[inline]
+    fn along_line(&self, ta: f64, tb: f64) -> bool {
+        (0..2).any(|a| {
+            let (p, q) = (self.o[a] + self.d[a] * ta, self.o[a] + self.d[a] * tb);
+            let k = p.round();
+            let tol = NEAR * (1.0 + self.o[a].abs() + (self.d[a] * tb).abs());
+            (p - k).abs() <= tol && (q - k).abs() <= tol
+        })
     }
 
     /// The ray's height at `t`.
@@ -286,6 +302,8 @@ impl Terrain {
         let low = |ta: f64, tb: f64| r.z(if r.d[2] < 0.0 { tb } else { ta });
         // The cells tried last, not to try them again where stretches meet.
         let (mut recent, mut next) = ([u64::MAX; RECENT], 0usize);
+        // Whether the stretch before `t` was a cell tried (not a node cleared).
+        let mut open = false;
         loop {
             let size = (1u64 << l) as f64;
             // Where the ray leaves node (x, y): by its east or west side at `tx`, by its
@@ -310,6 +328,7 @@ impl Terrain {
             if low(t, te) > max + SKIP_MARGIN {
                 // Clear of the node: on to the next one, and a level up where that one lies
                 // in another parent.
+                open = false;
                 if te >= t1 {
                     break;
                 }
@@ -346,16 +365,25 @@ impl Terrain {
                 x = (2 * x + bx).min(i64::from(nw) - 1);
                 y = (2 * y + by).min(i64::from(nh) - 1);
             } else {
-                // A cell the ray may meet: it and every cell touching the ray's stretch over
-                // it, tried (the march's walk over that stretch), each once.
-                self.walk(r, 0, (t, te), &mut best, |s, i, j, best| {
+                // A cell the ray may meet: tried, and with it the cells around the ends of
+                // its stretch where a hit there could be theirs (module docs).
+                let mut tried = |i: u32, j: u32, best: &mut Option<CellHit>| {
                     let key = u64::from(i) | u64::from(j) << 32;
                     if !recent.contains(&key) {
                         recent[next % RECENT] = key;
                         next += 1;
-                        s.try_cell(r, i, j, best);
+                        self.try_cell(r, i, j, best);
                     }
-                });
+                };
+                let along = r.along_line(t, te);
+                if t == t0 || open || along {
+                    self.around(r, t, &mut best, &mut tried);
+                }
+                tried(x as u32, y as u32, &mut best);
+                if te >= t1 || along {
+                    self.around(r, te, &mut best, &mut tried);
+                }
+                open = true;
                 if te >= t1 {
                     break;
                 }
@@ -376,6 +404,32 @@ impl Terrain {
             }
         }
         best
+    }
+
+    /// Tries, through `tried`, every cell whose square holds the ray's point at `t` or lies
+    /// within rounding of it: one cell inside, two on an edge, four at a vertex.
+    #[inline]
+    fn around(
+        &self,
+        r: &GridRay,
+        t: f64,
+        best: &mut Option<CellHit>,
+        tried: &mut impl FnMut(u32, u32, &mut Option<CellHit>),
+    ) {
+        let (cx, cy) = self.cells();
+        let range = |a: usize, n: u32| {
+            let p = r.o[a] + r.d[a] * t;
+            let tol = NEAR * (1.0 + r.o[a].abs() + (r.d[a] * t).abs());
+            let lo = ((p - tol).ceil() - 1.0).max(0.0) as u32;
+            let hi = ((p + tol).floor().max(0.0) as u32).min(n - 1);
+            (lo.min(n - 1), hi)
+        };
+        let ((i0, i1), (j0, j1)) = (range(0, cx), range(1, cy));
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                tried(i, j, best);
+            }
+        }
     }
 
     /// The shift to start at (paper 004, figure 6): about the cells the ray crosses while it
