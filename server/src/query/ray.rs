@@ -11,28 +11,53 @@
 //! closed square the ray touches is a candidate, each answers the smallest `t` at which the
 //! ray meets its patch (a quadratic in `t`, solved in closed form), and the first hit is the
 //! smallest answer, ties going to the southmost, then westmost cell. Both traversals below
-//! evaluate the same per-cell function on the same cells, so they return identical hits.
+//! evaluate the same per-cell function, each on every cell that could hold the first hit, so
+//! they return identical hits.
 //!
-//! **The paper's traversal** subdivides the ray's span along the pyramid: the span over a
-//! node is the ray's slab interval through the node's square; if the ray's height over that
-//! span (its lower end, the ray being straight) stays above the node's max, the whole node is
-//! skipped; otherwise its four children are visited nearest first (binary subdivision in each
-//! axis, figure 5). The paper picks a level from the span's projected length (figure 6); here
-//! the pyramid itself picks it: a node is descended only while the ray comes below its max,
-//! which over open ground stops high in the pyramid and near the surface goes down to cells.
-//! The search stops as soon as the next span begins after the best hit so far. Before it, the
-//! ray's first few cells are tried one by one: a steep ray usually hits there, sooner than a
-//! descent from the root (about 12 levels on a 4097-sample grid) would reach them. The rest of
-//! the ray is searched from the root, each node over its span within that rest only.
+//! **The traversal** ([`Terrain::cast`]) is the paper's multi-level tracing (figure 5) done
+//! without a stack, as in maximum-mipmap relief rendering: it holds one node of the pyramid
+//! (its shift `l`, integer coordinates `(x, y)`) and the distance `t` at which the ray enters
+//! it, and steps along the ray. The ray leaves the node where it crosses the node's east or
+//! west side (`tx`), its north or south side (`ty`), or leaves the grid or reaches
+//! `max_dist`, whichever comes first (`te`); the sides are integers times `2^l`, turned into
+//! distances with the ray's precomputed inverse direction. Then:
 //!
-//! Nodes share their border samples ([`super::pyramid`]), spans are closed, and a node is
-//! skipped only when the ray clears its max by [`SKIP_MARGIN`], far more than the rounding of
-//! the per-cell solution: so no cell that could hold the first hit is ever skipped, and the
-//! property tests check the answer against trying every cell of the grid.
+//! - if the ray's lower end over `[t, te]` (the ray being straight) stays above the node's
+//!   max by [`SKIP_MARGIN`], the node is cleared: `t` moves to `te`, the node steps to its
+//!   neighbour across the side the ray leaves by (both neighbours' common one through a
+//!   corner), and the walk goes up a level when that neighbour lies in another parent;
+//! - otherwise, above shift 0, the walk goes down to the child the ray is in just after `t`,
+//!   found by comparing `t` with where the ray crosses the node's middle lines, computed by
+//!   the same expression as the sides, so that a step and a later descent always agree on
+//!   which node the ray is in;
+//! - at shift 0 (single cells, bounded by their four corner samples, which the pyramid does
+//!   not store), a cell the ray is not clear of is tried with the per-cell solution.
+//!
+//! The walk starts where the ray enters the grid, at the level the paper's figure 6 suggests:
+//! the cells the ray crosses while it falls by its height above the sample under that point,
+//! as a power of two, one level lower ([`START_BELOW`]), at most the root. It stops at the end
+//! of the ray, or as soon as the next stretch begins after the best hit so far.
+//!
+//! **Why it returns the march's hit.** The stretches the walk steps through cover the ray
+//! within the grid, each closed. A cleared stretch lies in its node's closed square, where
+//! every cell's patch stays at or under the node's max (a node holds every corner sample of
+//! its cells, border samples included, [`super::pyramid`]), while the ray stays above it by
+//! [`SKIP_MARGIN`], far more than any rounding: no cell has its hit there. So the first hit
+//! lies on a stretch through a cell that was tried, on that cell or on another cell whose
+//! closed square the stretch touches. A straight stretch inside a cell touches other cells
+//! only at its ends, or all along where it runs along a grid line. The walk therefore also
+//! tries every cell whose square holds an end of the stretch, within [`NEAR`] of it (two
+//! cells on an edge, four at a vertex), where the stretch on the other side of that end was
+//! tried too, at the ray's first and last stretch, and at both ends of a stretch along a grid
+//! line; where the stretch on the other side was cleared, no cell has its hit at that end.
+//! Every cell is tried with the same function the march uses, and the best hit is chosen by
+//! the same order, so that both return the same hit, bit for bit: the property tests check
+//! both against trying every cell of the grid, and the benchmark counts any difference.
 //!
 //! **The brute force** ([`Terrain::march`]) visits every cell the ray's segment crosses,
 //! column by column in ray order (a DDA over the closed cells, so that cells touched along
-//! an edge or at a vertex are visited too), and stops at the first hit likewise.
+//! an edge or at a vertex are visited too), and stops at the first hit likewise. It is the
+//! baseline the traversal is measured against (`relief-server bench query`).
 
 use super::surface::{Corners, patch_height, patch_normal};
 use super::{QueryError, Terrain};
