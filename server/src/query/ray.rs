@@ -55,8 +55,9 @@
 //! both against trying every cell of the grid, and the benchmark counts any difference.
 //!
 //! **The brute force** ([`Terrain::march`]) visits every cell the ray's segment crosses,
-//! column by column in ray order (a DDA over the closed cells, so that cells touched along
-//! an edge or at a vertex are visited too), and stops at the first hit likewise. It is the
+//! column by column in ray order (a DDA over the closed cells, widened by [`NEAR`], so that
+//! cells touched along an edge or at a vertex are visited too, even where rounding puts the
+//! ray a hair off the vertex), and stops at the first hit likewise. It is the
 //! baseline the traversal is measured against (`relief-server bench query`).
 
 use super::surface::{Corners, patch_height, patch_normal};
@@ -529,9 +530,13 @@ impl Terrain {
         let (cx, cy) = self.cells();
         let (nw, nh) = self.pyramid.dims(s);
         let size = (1u64 << s) as f64;
-        // The nodes whose closed extent meets `[a, b]` along one axis.
+        // The nodes whose closed extent meets `[a, b]` along one axis, or comes within
+        // rounding of it ([`NEAR`] times the largest coordinate the ray can have here): a
+        // cell that the ray touches only at a vertex, computed a hair off, is still visited.
+        let big = r.o[0].abs().max(r.o[1].abs()) + f64::from(cx.max(cy));
+        let tol = NEAR * (1.0 + 2.0 * big);
         let span = |a: f64, b: f64, n: u32| {
-            let (lo, hi) = (a.min(b) / size, a.max(b) / size);
+            let (lo, hi) = ((a.min(b) - tol) / size, (a.max(b) + tol) / size);
             (
                 ceil_minus_one(lo).min(n - 1),
                 (hi.max(0.0) as u32).min(n - 1),

@@ -149,8 +149,9 @@ proptest! {
     }
 
     /// Rays from grid vertices along lattice directions (through vertices, along edges),
-    /// over flat-topped integer DEMs (ties everywhere): the pyramid's cast returns exactly
-    /// the march's hit, cell included, and the exhaustive one.
+    /// over integer DEMs (ties everywhere): the pyramid's cast and the march both return
+    /// exactly the exhaustive hit, cell included (the march once lost cells that the ray
+    /// touches only at a vertex, computed a hair off).
     #[test]
     fn cast_is_the_march_exactly_through_vertices(
         (t, ray) in dem_up_to(40).prop_flat_map(|(w, h, _, _, z)| {
@@ -174,9 +175,9 @@ proptest! {
         })
     ) {
         let cast = t.cast(&ray).unwrap();
-        prop_assert_eq!(cast, t.march(&ray).unwrap());
         let r = GridRay::new(&t, &ray, 0.0).unwrap();
         prop_assert_eq!(cast, t.exhaustive_grid(&r).map(|h| t.hit(&r, h)));
+        prop_assert_eq!(cast, t.march(&ray).unwrap());
     }
 
     /// A line of sight is blocked exactly where dense sampling of the segment first finds it
