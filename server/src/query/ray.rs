@@ -51,8 +51,10 @@
 //! tried too, at the ray's first and last stretch, and at both ends of a stretch along a grid
 //! line; where the stretch on the other side was cleared, no cell has its hit at that end.
 //! Every cell is tried with the same function the march uses, and the best hit is chosen by
-//! the same order, so that both return the same hit, bit for bit: the property tests check
-//! both against trying every cell of the grid, and the benchmark counts any difference.
+//! the same order, so that both return the same hit, bit for bit. Exact ties between cells
+//! meeting at a vertex rest on the rounding tolerances above rather than on a proof: the
+//! property tests check both traversals exactly against trying every cell of the grid on
+//! rays through vertices, and the benchmark counts any difference.
 //!
 //! **The brute force** ([`Terrain::march`]) visits every cell the ray's segment crosses,
 //! column by column in ray order (a DDA over the closed cells, widened by [`NEAR`], so that
