@@ -7,8 +7,9 @@
 //! - [`surface`]: the surface itself (the bilinear patch over each cell), heights and normals
 //!   at world points, bilinear or bicubic.
 //! - [`pyramid`]: the max-mip and min-mip pyramids over the cells (paper 004, figure 4).
-//! - [`ray`]: the first hit of a ray by the paper's hierarchical subdivision over the max-mip
-//!   pyramid (figure 5), and the brute-force cell-by-cell march it is checked against.
+//! - [`ray`]: the first hit of a ray by a stackless traversal of the max-mip pyramid (paper
+//!   004's multi-level tracing, figures 5 and 6), and the brute-force cell-by-cell march it
+//!   is checked against.
 //! - [`los`]: line of sight between two points with a clearance.
 //! - [`hat`]: HAT/HOT for many entities.
 //! - [`batch`]: the wire's query batches ([`relief_proto::query`]) answered item by item.

@@ -13,7 +13,10 @@
 //!
 //! Shift 0 (single cells) is not stored: its bound is the max of four corners, read from the
 //! heights when needed. Shifts 1 and up are stored, so the pyramids hold about 2/3 of a
-//! height per cell in all (max and min together).
+//! height per cell in all (max and min together). Each level is stored in tiles of 4 x 4
+//! nodes, one 64-byte cache line of each array, so that the ray cast ([`super::ray`]),
+//! stepping from a node to its neighbour east, west, north or south, mostly finds it in the
+//! line it has just read (a level's last row and column of tiles are padded).
 //!
 //! Rows count from the south, as in [`super::Terrain`].
 
@@ -28,11 +31,17 @@ pub struct Pyramid {
     levels: Vec<Level>,
 }
 
-/// One level of both pyramids.
+/// One level of both pyramids, stored in tiles of 4 x 4 nodes (64 bytes of each array), so
+/// that a ray stepping to a neighbouring node, north or east alike, mostly stays in the cache
+/// line it has just read.
 #[derive(Clone, Debug)]
 struct Level {
-    /// Nodes per row, to index the arrays.
+    /// Nodes per row.
     w: u32,
+    /// Nodes per column.
+    h: u32,
+    /// Tiles per row, to index the arrays.
+    tiles: u32,
     /// The max over each node's samples: what a ray must stay above to skip the node.
     max: Vec<f32>,
     /// The min over each node's samples: a segment below it over a node is certainly under
@@ -49,7 +58,8 @@ impl Pyramid {
         let top = top_shift(cx, cy);
         for s in 1..=top {
             let (w, h) = (cx.div_ceil(1 << s), cy.div_ceil(1 << s));
-            let n = w as usize * h as usize;
+            let tiles = w.div_ceil(TILE);
+            let n = (tiles * TILE) as usize * h.next_multiple_of(TILE) as usize;
             let (mut max, mut min) = (vec![f32::MIN; n], vec![f32::MAX; n]);
             match levels.last() {
                 // Shift 1 from the samples: each node's cells' corners, up to 3 x 3 samples.
@@ -66,31 +76,37 @@ impl Pyramid {
                                     lo = lo.min(v);
                                 }
                             }
-                            let i = (y * w + x) as usize;
+                            let i = tiled(tiles, x, y);
                             (max[i], min[i]) = (hi, lo);
                         }
                     }
                 }
                 // Higher shifts from the level below: the nodes' children that exist.
                 Some(below) => {
-                    let bh = below.max.len() as u32 / below.w;
+                    let bh = below.h;
                     for y in 0..h {
                         for x in 0..w {
                             let (mut hi, mut lo) = (f32::MIN, f32::MAX);
                             for ky in 2 * y..(2 * y + 2).min(bh) {
                                 for kx in 2 * x..(2 * x + 2).min(below.w) {
-                                    let k = (ky * below.w + kx) as usize;
+                                    let k = tiled(below.tiles, kx, ky);
                                     hi = hi.max(below.max[k]);
                                     lo = lo.min(below.min[k]);
                                 }
                             }
-                            let i = (y * w + x) as usize;
+                            let i = tiled(tiles, x, y);
                             (max[i], min[i]) = (hi, lo);
                         }
                     }
                 }
             }
-            levels.push(Level { w, max, min });
+            levels.push(Level {
+                w,
+                h,
+                tiles,
+                max,
+                min,
+            });
         }
         Pyramid {
             cells_x: cx,
@@ -115,20 +131,31 @@ impl Pyramid {
     #[inline]
     pub fn max(&self, s: u32, x: u32, y: u32) -> f32 {
         let l = &self.levels[s as usize - 1];
-        l.max[(y * l.w + x) as usize]
+        l.max[tiled(l.tiles, x, y)]
     }
 
     /// The min of node `(x, y)` at shift `s >= 1`, metres.
     #[inline]
     pub fn min(&self, s: u32, x: u32, y: u32) -> f32 {
         let l = &self.levels[s as usize - 1];
-        l.min[(y * l.w + x) as usize]
+        l.min[tiled(l.tiles, x, y)]
     }
 
     /// Bytes held by both pyramids.
     pub fn bytes(&self) -> usize {
         self.levels.iter().map(|l| l.max.len() * 8).sum()
     }
+}
+
+/// Nodes per side of a tile.
+const TILE: u32 = 4;
+
+/// Where node `(x, y)` lies in a level `tiles` tiles wide: its tile, row-major, then the node
+/// in the tile, row-major.
+#[inline]
+fn tiled(tiles: u32, x: u32, y: u32) -> usize {
+    let tile = (y / TILE) as usize * tiles as usize + (x / TILE) as usize;
+    tile * (TILE * TILE) as usize + ((y % TILE) * TILE + x % TILE) as usize
 }
 
 /// The smallest shift at which a `cx` x `cy`-cell grid is one node.

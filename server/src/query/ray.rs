@@ -11,28 +11,56 @@
 //! closed square the ray touches is a candidate, each answers the smallest `t` at which the
 //! ray meets its patch (a quadratic in `t`, solved in closed form), and the first hit is the
 //! smallest answer, ties going to the southmost, then westmost cell. Both traversals below
-//! evaluate the same per-cell function on the same cells, so they return identical hits.
+//! evaluate the same per-cell function, each on every cell that could hold the first hit, so
+//! they return identical hits.
 //!
-//! **The paper's traversal** subdivides the ray's span along the pyramid: the span over a
-//! node is the ray's slab interval through the node's square; if the ray's height over that
-//! span (its lower end, the ray being straight) stays above the node's max, the whole node is
-//! skipped; otherwise its four children are visited nearest first (binary subdivision in each
-//! axis, figure 5). The paper picks a level from the span's projected length (figure 6); here
-//! the pyramid itself picks it: a node is descended only while the ray comes below its max,
-//! which over open ground stops high in the pyramid and near the surface goes down to cells.
-//! The search stops as soon as the next span begins after the best hit so far. Before it, the
-//! ray's first few cells are tried one by one: a steep ray usually hits there, sooner than a
-//! descent from the root (about 12 levels on a 4097-sample grid) would reach them. The rest of
-//! the ray is searched from the root, each node over its span within that rest only.
+//! **The traversal** ([`Terrain::cast`]) is the paper's multi-level tracing (figure 5) done
+//! without a stack, as in maximum-mipmap relief rendering: it holds one node of the pyramid
+//! (its shift `l`, integer coordinates `(x, y)`) and the distance `t` at which the ray enters
+//! it, and steps along the ray. The ray leaves the node where it crosses the node's east or
+//! west side (`tx`), its north or south side (`ty`), or leaves the grid or reaches
+//! `max_dist`, whichever comes first (`te`); the sides are integers times `2^l`, turned into
+//! distances with the ray's precomputed inverse direction. Then:
 //!
-//! Nodes share their border samples ([`super::pyramid`]), spans are closed, and a node is
-//! skipped only when the ray clears its max by [`SKIP_MARGIN`], far more than the rounding of
-//! the per-cell solution: so no cell that could hold the first hit is ever skipped, and the
-//! property tests check the answer against trying every cell of the grid.
+//! - if the ray's lower end over `[t, te]` (the ray being straight) stays above the node's
+//!   max by [`SKIP_MARGIN`], the node is cleared: `t` moves to `te`, the node steps to its
+//!   neighbour across the side the ray leaves by (both neighbours' common one through a
+//!   corner), and the walk goes up a level when that neighbour lies in another parent;
+//! - otherwise, above shift 0, the walk goes down to the child the ray is in just after `t`,
+//!   found by comparing `t` with where the ray crosses the node's middle lines, computed by
+//!   the same expression as the sides, so that a step and a later descent always agree on
+//!   which node the ray is in;
+//! - at shift 0 (single cells, bounded by their four corner samples, which the pyramid does
+//!   not store), a cell the ray is not clear of is tried with the per-cell solution.
+//!
+//! The walk starts where the ray enters the grid, at the level the paper's figure 6 suggests:
+//! the cells the ray crosses while it falls by its height above the sample under that point,
+//! as a power of two, one level lower ([`START_BELOW`]), at most the root. It stops at the end
+//! of the ray, or as soon as the next stretch begins after the best hit so far.
+//!
+//! **Why it returns the march's hit.** The stretches the walk steps through cover the ray
+//! within the grid, each closed. A cleared stretch lies in its node's closed square, where
+//! every cell's patch stays at or under the node's max (a node holds every corner sample of
+//! its cells, border samples included, [`super::pyramid`]), while the ray stays above it by
+//! [`SKIP_MARGIN`], far more than any rounding: no cell has its hit there. So the first hit
+//! lies on a stretch through a cell that was tried, on that cell or on another cell whose
+//! closed square the stretch touches. A straight stretch inside a cell touches other cells
+//! only at its ends, or all along where it runs along a grid line. The walk therefore also
+//! tries every cell whose square holds an end of the stretch, within [`NEAR`] of it (two
+//! cells on an edge, four at a vertex), where the stretch on the other side of that end was
+//! tried too, at the ray's first and last stretch, and at both ends of a stretch along a grid
+//! line; where the stretch on the other side was cleared, no cell has its hit at that end.
+//! Every cell is tried with the same function the march uses, and the best hit is chosen by
+//! the same order, so that both return the same hit, bit for bit. Exact ties between cells
+//! meeting at a vertex rest on the rounding tolerances above rather than on a proof: the
+//! property tests check both traversals exactly against trying every cell of the grid on
+//! rays through vertices, and the benchmark counts any difference.
 //!
 //! **The brute force** ([`Terrain::march`]) visits every cell the ray's segment crosses,
-//! column by column in ray order (a DDA over the closed cells, so that cells touched along
-//! an edge or at a vertex are visited too), and stops at the first hit likewise.
+//! column by column in ray order (a DDA over the closed cells, widened by [`NEAR`], so that
+//! cells touched along an edge or at a vertex are visited too, even where rounding puts the
+//! ray a hair off the vertex), and stops at the first hit likewise. It is the
+//! baseline the traversal is measured against (`relief-server bench query`).
 
 use super::surface::{Corners, patch_height, patch_normal};
 use super::{QueryError, Terrain};
@@ -66,9 +94,17 @@ pub struct Hit {
 /// rounding of the per-cell solution, far less than any terrain detail.
 const SKIP_MARGIN: f64 = 1e-6;
 
-/// Cells along its major axis that a ray is marched cell by cell before the pyramid is
-/// searched for the rest.
-const NEAR_CELLS: f64 = 6.0;
+/// Levels below the one the ray's height above the ground suggests that the traversal
+/// starts at.
+const START_BELOW: u32 = 1;
+
+/// Cells remembered as tried, so that the cells around the point where two stretches of the
+/// ray meet are not tried twice.
+const RECENT: usize = 4;
+
+/// How near a grid line, relative to the coordinates' size, a point of the ray counts as on
+/// it: far more than their rounding, so that no cell the ray may touch there is missed.
+const NEAR: f64 = 1e-9;
 
 /// A ray in grid units: `u = x / dx`, `v = y / dy` (rows from the south), `z` in metres, all
 /// against the distance `t` in metres along the unit direction.
@@ -155,6 +191,18 @@ impl GridRay {
         let ta = a0.max(b0).max(0.0);
         let tb = a1.min(b1).min(self.tmax);
         (ta <= tb).then_some((ta, tb))
+    }
+
+    /// Whether the ray's stretch over `[ta, tb]` runs along a grid line, within rounding:
+    /// both ends on the same line of constant `u` or `v`.
+    #[inline]
+    fn along_line(&self, ta: f64, tb: f64) -> bool {
+        (0..2).any(|a| {
+            let (p, q) = (self.o[a] + self.d[a] * ta, self.o[a] + self.d[a] * tb);
+            let k = p.round();
+            let tol = NEAR * (1.0 + self.o[a].abs() + (self.d[a] * tb).abs());
+            (p - k).abs() <= tol && (q - k).abs() <= tol
+        })
     }
 
     /// The ray's height at `t`.
@@ -270,21 +318,183 @@ impl Terrain {
         let (cx, cy) = self.cells();
         let (t0, t1) = r.slab(0.0, f64::from(cx), 0.0, f64::from(cy))?;
         let mut best = None;
-        // The first few cells one by one: a ray that hits there (a steep one) is done
-        // before a descent from the root would have reached it.
-        let per_cell = 1.0 / r.d[0].abs().max(r.d[1].abs());
-        let near = (t0 + NEAR_CELLS * per_cell).min(t1);
-        self.walk(r, 0, (t0, near), &mut best, |t, i, j, best| {
-            t.try_cell(r, i, j, best)
-        });
-        if near >= t1 || best.is_some_and(|b| b.t < near) {
-            return best;
-        }
         let top = self.pyramid.top_shift();
-        if top > 0 {
-            self.descend(r, top, 0, 0, (near, t1), &mut best);
+        let (mut t, mut l) = (t0, self.start_shift(r, t0, top));
+        let [mut x, mut y] = self.node_at(r, t, l);
+        // Which side of a node the ray leaves by: 1 where it goes east (north), else 0.
+        let ex = i64::from(r.d[0] > 0.0);
+        let ey = i64::from(r.d[1] > 0.0);
+        let sx = if r.d[0] >= 0.0 { 1 } else { -1 };
+        let sy = if r.d[1] >= 0.0 { 1 } else { -1 };
+        // The ray's lowest point over `[ta, tb]`.
+        let low = |ta: f64, tb: f64| r.z(if r.d[2] < 0.0 { tb } else { ta });
+        // The cells tried last, not to try them again where stretches meet.
+        let (mut recent, mut next) = ([u64::MAX; RECENT], 0usize);
+        // Whether the stretch before `t` was a cell tried (not a node cleared).
+        let mut open = false;
+        loop {
+            let size = (1u64 << l) as f64;
+            // Where the ray leaves node (x, y): by its east or west side at `tx`, by its
+            // north or south side at `ty`, or out of the grid (or at its length) at `t1`.
+            let tx = if r.d[0] != 0.0 {
+                ((x + ex) as f64 * size - r.o[0]) * r.inv[0]
+            } else {
+                f64::INFINITY
+            };
+            let ty = if r.d[1] != 0.0 {
+                ((y + ey) as f64 * size - r.o[1]) * r.inv[1]
+            } else {
+                f64::INFINITY
+            };
+            let te = tx.min(ty).min(t1).max(t);
+            let max = if l == 0 {
+                let c = self.corners(x as u32, y as u32);
+                c[0].max(c[1]).max(c[2]).max(c[3])
+            } else {
+                f64::from(self.pyramid.max(l, x as u32, y as u32))
+            };
+            if low(t, te) > max + SKIP_MARGIN {
+                // Clear of the node: on to the next one, and a level up where that one lies
+                // in another parent.
+                open = false;
+                if te >= t1 {
+                    break;
+                }
+                let (px, py) = (x >> 1, y >> 1);
+                if tx <= ty {
+                    x += sx;
+                }
+                if ty <= tx {
+                    y += sy;
+                }
+                t = te;
+                if l < top && (x >> 1 != px || y >> 1 != py) {
+                    (x, y, l) = (x >> 1, y >> 1, l + 1);
+                }
+            } else if l > 0 {
+                // Under the node's max somewhere: down to the child the ray is in at `t`.
+                let half = size / 2.0;
+                let bit = |o: f64, d: f64, inv: f64, k: i64| -> i64 {
+                    let mid = (2 * k + 1) as f64 * half;
+                    if d > 0.0 {
+                        i64::from(t >= (mid - o) * inv)
+                    } else if d < 0.0 {
+                        i64::from(t < (mid - o) * inv)
+                    } else {
+                        i64::from(o >= mid)
+                    }
+                };
+                let (bx, by) = (
+                    bit(r.o[0], r.d[0], r.inv[0], x),
+                    bit(r.o[1], r.d[1], r.inv[1], y),
+                );
+                l -= 1;
+                let (nw, nh) = self.pyramid.dims(l);
+                x = (2 * x + bx).min(i64::from(nw) - 1);
+                y = (2 * y + by).min(i64::from(nh) - 1);
+            } else {
+                // A cell the ray may meet: tried, and with it the cells around the ends of
+                // its stretch where a hit there could be theirs (module docs).
+                let mut tried = |i: u32, j: u32, best: &mut Option<CellHit>| {
+                    let key = u64::from(i) | u64::from(j) << 32;
+                    if !recent.contains(&key) {
+                        recent[next % RECENT] = key;
+                        next += 1;
+                        self.try_cell(r, i, j, best);
+                    }
+                };
+                let along = r.along_line(t, te);
+                if t == t0 || open || along {
+                    self.around(r, t, &mut best, &mut tried);
+                }
+                tried(x as u32, y as u32, &mut best);
+                if te >= t1 || along {
+                    self.around(r, te, &mut best, &mut tried);
+                }
+                open = true;
+                if te >= t1 {
+                    break;
+                }
+                let (px, py) = (x >> 1, y >> 1);
+                if tx <= ty {
+                    x += sx;
+                }
+                if ty <= tx {
+                    y += sy;
+                }
+                t = te;
+                if top > 0 && (x >> 1 != px || y >> 1 != py) {
+                    (x, y, l) = (x >> 1, y >> 1, l + 1);
+                }
+            }
+            if best.is_some_and(|b| t > b.t) {
+                break;
+            }
         }
         best
+    }
+
+    /// Tries, through `tried`, every cell whose square holds the ray's point at `t` or lies
+    /// within rounding of it: one cell inside, two on an edge, four at a vertex.
+    #[inline]
+    fn around(
+        &self,
+        r: &GridRay,
+        t: f64,
+        best: &mut Option<CellHit>,
+        tried: &mut impl FnMut(u32, u32, &mut Option<CellHit>),
+    ) {
+        let (cx, cy) = self.cells();
+        let range = |a: usize, n: u32| {
+            let p = r.o[a] + r.d[a] * t;
+            let tol = NEAR * (1.0 + r.o[a].abs() + (r.d[a] * t).abs());
+            let lo = ((p - tol).ceil() - 1.0).max(0.0) as u32;
+            let hi = ((p + tol).floor().max(0.0) as u32).min(n - 1);
+            (lo.min(n - 1), hi)
+        };
+        let ((i0, i1), (j0, j1)) = (range(0, cx), range(1, cy));
+        for j in j0..=j1 {
+            for i in i0..=i1 {
+                tried(i, j, best);
+            }
+        }
+    }
+
+    /// The shift to start at (paper 004, figure 6): about the cells the ray crosses while it
+    /// falls by its height above the ground where it enters the grid at `t`, up to `top`.
+    #[inline]
+    fn start_shift(&self, r: &GridRay, t: f64, top: u32) -> u32 {
+        if r.d[2] >= 0.0 {
+            return top;
+        }
+        let (cx, cy) = self.cells();
+        let u = (r.o[0] + r.d[0] * t).clamp(0.0, f64::from(cx - 1));
+        let v = (r.o[1] + r.d[1] * t).clamp(0.0, f64::from(cy - 1));
+        let h = r.z(t) - self.at(u as u32, v as u32);
+        let cells = h / -r.d[2] * r.d[0].abs().max(r.d[1].abs());
+        if cells >= 2.0 {
+            ((cells as u64).ilog2() - START_BELOW.min((cells as u64).ilog2())).min(top)
+        } else {
+            0
+        }
+    }
+
+    /// The node at shift `l` that the ray is in just after `t` (the one it is about to cross,
+    /// where `t` falls on a node's side).
+    #[inline]
+    fn node_at(&self, r: &GridRay, t: f64, l: u32) -> [i64; 2] {
+        let (nw, nh) = self.pyramid.dims(l);
+        let scale = 1.0 / (1u64 << l) as f64;
+        let at = |a: usize, n: u32| {
+            let p = (r.o[a] + r.d[a] * t) * scale;
+            let k = if r.d[a] < 0.0 {
+                p.ceil() - 1.0
+            } else {
+                p.floor()
+            };
+            (k.max(0.0) as i64).min(i64::from(n) - 1)
+        };
+        [at(0, nw), at(1, nh)]
     }
 
     /// Tries cell `(i, j)`, keeping the better hit in `best`.
@@ -294,102 +504,6 @@ impl Terrain {
             && h.before(best)
         {
             *best = Some(h);
-        }
-    }
-
-    /// Searches node `(x, y)` at shift `s >= 1` depth-first over the ray's stretch `seg`,
-    /// keeping the better hit in `best`.
-    fn descend(
-        &self,
-        r: &GridRay,
-        s: u32,
-        x: u32,
-        y: u32,
-        seg: (f64, f64),
-        best: &mut Option<CellHit>,
-    ) {
-        // Depth-first, nearest child on top: at most 3 siblings wait per level. Each entry
-        // passed the slab and max tests when pushed and keeps where its span begins.
-        let mut stack = [(0u32, 0u32, 0u32, 0f64); 4 * 33];
-        let Some(ta) = self.node_entry(r, s, x, y, seg) else {
-            return;
-        };
-        stack[0] = (s, x, y, ta);
-        let mut len = 1;
-        while len > 0 {
-            len -= 1;
-            let (s, x, y, ta) = stack[len];
-            if best.is_some_and(|b| ta > b.t) {
-                continue;
-            }
-            let cs = s - 1;
-            let (nw, nh) = self.pyramid.dims(cs);
-            let base = len;
-            for (kx, ky) in self.children(r, cs, x, y) {
-                if kx >= nw || ky >= nh {
-                    continue;
-                }
-                if cs == 0 {
-                    self.try_cell(r, kx, ky, best);
-                } else if let Some(t) = self.node_entry(r, cs, kx, ky, seg) {
-                    stack[len] = (cs, kx, ky, t);
-                    len += 1;
-                }
-            }
-            // Reverse what was just pushed, so that the nearest child is on top.
-            stack[base..len].reverse();
-        }
-    }
-
-    /// Where `r`'s span over node `(x, y)` at shift `s >= 1` within `seg` begins, unless the
-    /// ray misses the node there or stays above its max over that span.
-    #[inline]
-    fn node_entry(&self, r: &GridRay, s: u32, x: u32, y: u32, seg: (f64, f64)) -> Option<f64> {
-        let (cx, cy) = self.cells();
-        let u0 = (u64::from(x) << s) as f64;
-        let u1 = ((u64::from(x) + 1) << s).min(u64::from(cx)) as f64;
-        let v0 = (u64::from(y) << s) as f64;
-        let v1 = ((u64::from(y) + 1) << s).min(u64::from(cy)) as f64;
-        let (ta, tb) = r.slab(u0, u1, v0, v1)?;
-        let (ta, tb) = (ta.max(seg.0), tb.min(seg.1));
-        if ta > tb {
-            return None;
-        }
-        let max = f64::from(self.pyramid.max(s, x, y));
-        (r.z(ta).min(r.z(tb)) <= max + SKIP_MARGIN).then_some(ta)
-    }
-
-    /// The four children at shift `cs` of node `(x, y)` in the order the ray meets them:
-    /// near and far in each axis, the middle two by which half-plane the ray crosses first.
-    #[inline]
-    fn children(&self, r: &GridRay, cs: u32, x: u32, y: u32) -> [(u32, u32); 4] {
-        let (x0, y0) = (2 * x, 2 * y);
-        let (nx, fx) = if r.d[0] >= 0.0 {
-            (x0, x0 + 1)
-        } else {
-            (x0 + 1, x0)
-        };
-        let (ny, fy) = if r.d[1] >= 0.0 {
-            (y0, y0 + 1)
-        } else {
-            (y0 + 1, y0)
-        };
-        let um = ((u64::from(x0) + 1) << cs) as f64;
-        let vm = ((u64::from(y0) + 1) << cs) as f64;
-        let tx = if r.d[0] != 0.0 {
-            (um - r.o[0]) * r.inv[0]
-        } else {
-            f64::INFINITY
-        };
-        let ty = if r.d[1] != 0.0 {
-            (vm - r.o[1]) * r.inv[1]
-        } else {
-            f64::INFINITY
-        };
-        if tx <= ty {
-            [(nx, ny), (fx, ny), (nx, fy), (fx, fy)]
-        } else {
-            [(nx, ny), (nx, fy), (fx, ny), (fx, fy)]
         }
     }
 
@@ -418,10 +532,17 @@ impl Terrain {
         let (cx, cy) = self.cells();
         let (nw, nh) = self.pyramid.dims(s);
         let size = (1u64 << s) as f64;
-        // The nodes whose closed extent meets `[a, b]` along one axis.
+        // The nodes whose closed extent meets `[a, b]` along one axis, or comes within
+        // rounding of it ([`NEAR`] times the largest coordinate the ray can have here): a
+        // cell that the ray touches only at a vertex, computed a hair off, is still visited.
+        let big = r.o[0].abs().max(r.o[1].abs()) + f64::from(cx.max(cy));
+        let tol = NEAR * (1.0 + 2.0 * big);
         let span = |a: f64, b: f64, n: u32| {
-            let (lo, hi) = (a.min(b) / size, a.max(b) / size);
-            (ceil_minus_one(lo), (hi.max(0.0) as u32).min(n - 1))
+            let (lo, hi) = ((a.min(b) - tol) / size, (a.max(b) + tol) / size);
+            (
+                ceil_minus_one(lo).min(n - 1),
+                (hi.max(0.0) as u32).min(n - 1),
+            )
         };
         let end = |k: u32, n: u32| ((u64::from(k) + 1) << s).min(u64::from(n)) as f64;
         let (ilo, ihi) = span(r.o[0] + r.d[0] * t0, r.o[0] + r.d[0] * t1, nw);

@@ -148,6 +148,38 @@ proptest! {
         cast_and_march_agree_with_exhaustive(&t, &ray)?;
     }
 
+    /// Rays from grid vertices along lattice directions (through vertices, along edges),
+    /// over integer DEMs (ties everywhere): the pyramid's cast and the march both return
+    /// exactly the exhaustive hit, cell included (the march once lost cells that the ray
+    /// touches only at a vertex, computed a hair off).
+    #[test]
+    fn cast_is_the_march_exactly_through_vertices(
+        (t, ray) in dem_up_to(40).prop_flat_map(|(w, h, _, _, z)| {
+            let z: Vec<f32> = z.iter().map(|v| v.round()).collect();
+            let t = terrain(w, h, 1.0, 1.0, &z);
+            let ray = (
+                0..w + 2,
+                0..h + 2,
+                -6i32..10,
+                -2i32..3,
+                -2i32..3,
+                prop_oneof![Just(0.0), Just(-1.0), -2.0..1.0f64],
+            )
+                .prop_filter("non-zero direction", |r| (r.3, r.4, r.5) != (0, 0, 0.0))
+                .prop_map(|(x, y, z, a, b, c)| Ray {
+                    origin: DVec3::new(f64::from(x) - 1.0, f64::from(y) - 1.0, f64::from(z)),
+                    dir: DVec3::new(f64::from(a), f64::from(b), c),
+                    max_dist: f64::INFINITY,
+                });
+            (Just(t), ray)
+        })
+    ) {
+        let cast = t.cast(&ray).unwrap();
+        let r = GridRay::new(&t, &ray, 0.0).unwrap();
+        prop_assert_eq!(cast, t.exhaustive_grid(&r).map(|h| t.hit(&r, h)));
+        prop_assert_eq!(cast, t.march(&ray).unwrap());
+    }
+
     /// A line of sight is blocked exactly where dense sampling of the segment first finds it
     /// within the clearance of the ground.
     #[test]
