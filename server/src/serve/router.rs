@@ -4,7 +4,6 @@
 use super::http::ApiError;
 use super::limits::Refusal;
 use super::state::AppState;
-
 use super::{formats, http, pages, query, raycast, tiles, ws};
 use axum::Router;
 use axum::extract::DefaultBodyLimit;
