@@ -245,6 +245,7 @@ async fn the_static_server_serves_from_an_empty_root() {
     let mut child = chroot("10001:10001")
         .arg("serve")
         .env_clear()
+        .env("PATH", "/usr/sbin:/usr/bin:/sbin:/bin")
         .env("RELIEF_ADDR", addr.to_string())
         .env("RELIEF_STORE", "/srv/terrain.relief")
         .env("RELIEF_CACHE_DIR", "/var/cache/relief")
