@@ -120,12 +120,27 @@ pub struct ChaosReport {
     pub queries_failed: u64,
     /// Longest time without an answered query, milliseconds.
     pub query_gap_max_ms: f64,
-    /// When each action ran, seconds since the start, with the action.
-    pub actions: Vec<(f64, String)>,
+    /// Each action as it ran.
+    pub actions: Vec<ActionRecord>,
     /// Seconds the run took.
     pub wall_s: f64,
     /// Each session's final digest, by session index (0 for a lost session).
     pub digests: Vec<u64>,
+}
+
+/// One action of a run.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ActionRecord {
+    /// The action.
+    pub action: String,
+    /// When it started, seconds since the run's start.
+    pub at_s: f64,
+    /// How long it took, seconds.
+    pub took_s: f64,
+    /// The fraction of all poses flown when it started.
+    pub flown_before: f64,
+    /// The fraction flown when it ended: below 1 if the fleet was still flying.
+    pub flown_after: f64,
 }
 
 /// One session's outcome.
@@ -273,8 +288,18 @@ pub async fn run(opts: &ChaosOptions, drill: &mut dyn Drill) -> Result<ChaosRepo
         while (flown.load(Relaxed) as f64) < at * total && !tasks.iter().all(|t| t.is_finished()) {
             tokio::time::sleep(Duration::from_millis(10)).await;
         }
-        done_actions.push((t0.elapsed().as_secs_f64(), action.clone()));
+        let (at_s, flown_before) = (
+            t0.elapsed().as_secs_f64(),
+            flown.load(Relaxed) as f64 / total,
+        );
         drill.act(&action).await?;
+        done_actions.push(ActionRecord {
+            action,
+            at_s,
+            took_s: t0.elapsed().as_secs_f64() - at_s,
+            flown_before,
+            flown_after: flown.load(Relaxed) as f64 / total,
+        });
     }
     let results = futures_util::future::join_all(tasks).await;
     stop.store(1, Relaxed);
@@ -346,8 +371,15 @@ pub fn summary(r: &ChaosReport) -> String {
         r.query_gap_max_ms,
         r.wall_s
     );
-    for (t, a) in &r.actions {
-        s.push_str(&format!("\n  at {t:.1} s: {a}"));
+    for a in &r.actions {
+        s.push_str(&format!(
+            "\n  at {:.1} s ({:.0} % flown): {} (took {:.2} s; {:.0} % flown after)",
+            a.at_s,
+            100.0 * a.flown_before,
+            a.action,
+            a.took_s,
+            100.0 * a.flown_after
+        ));
     }
     for e in &r.errors {
         s.push_str(&format!("\n  lost: {e}"));

@@ -128,6 +128,14 @@ async fn haproxy(front: SocketAddr, replicas: &[SocketAddr]) -> Haproxy {
 fn assert_survived(what: &str, r: &ChaosReport, reference: &ChaosReport) {
     println!("{what}: {}", chaos::summary(r));
     assert_eq!((r.lost, r.desyncs), (0, 0), "{what}: {:?}", r.errors);
+    // Every action hit the fleet in flight.
+    for a in &r.actions {
+        assert!(
+            a.flown_after < 1.0,
+            "{what}: {} came after the flights",
+            a.action
+        );
+    }
     assert!(r.sessions_reconnected > 0, "{what}: nobody reconnected");
     assert_eq!(r.resumes, r.reconnects, "{what}: a session started afresh");
     let differ = r
@@ -184,7 +192,7 @@ async fn three_replicas_behind_haproxy_survive_a_kill_and_a_rolling_restart() {
     let opts = |actions: &[(f64, &str)]| ChaosOptions {
         url: format!("ws://{front}/v1/stream"),
         sessions: 200,
-        poses: 60,
+        poses: 300,
         actions: actions.iter().map(|(f, a)| (*f, a.to_string())).collect(),
         query_every: Some(Duration::from_millis(50)),
         reconnect_deadline: Duration::from_secs(30),
