@@ -301,3 +301,36 @@ async fn the_static_server_serves_from_an_empty_root() {
         .unwrap();
     assert!(!health_down.success());
 }
+
+#[test]
+fn the_capacity_model_covers_every_committed_sweep() {
+    let out = Command::new("python3")
+        .arg(repo().join("deploy/capacity.py"))
+        .args(["--sessions", "100000"])
+        .output()
+        .expect("python3 (tests/setup.sh installs python3-venv, which brings it)");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    println!("{text}");
+    let rows: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| workload"))
+        .collect();
+    for sweep in ["crop", "synthetic4097", "tiles-fuji", "tiles-synthetic4097"] {
+        assert!(
+            rows.iter().any(|r| r.starts_with(&format!("| {sweep}:"))),
+            "no row for {sweep}: {text}"
+        );
+    }
+    // Bad assumptions are refused.
+    let bad = Command::new("python3")
+        .arg(repo().join("deploy/capacity.py"))
+        .args(["--cores", "0"])
+        .output()
+        .unwrap();
+    assert!(!bad.status.success());
+}
