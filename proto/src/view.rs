@@ -298,6 +298,31 @@ pub fn morph_alpha(e_scr: f32, tau: f32, lambda: f32) -> f32 {
     ((e_scr - tau) / ((lambda - 1.0) * tau)).clamp(0.0, 1.0)
 }
 
+/// Parses `x,y,z,yaw,pitch`: metres east and north of the terrain's south-west sample, metres
+/// of height, degrees counter-clockwise from east, degrees of elevation (negative looks down).
+pub fn parse_camera(s: &str) -> Result<Camera, String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("camera {s:?} is not five numbers x,y,z,yaw,pitch"))?;
+    let [x, y, z, yaw, pitch] = v[..] else {
+        return Err(format!("camera {s:?} is not five numbers x,y,z,yaw,pitch"));
+    };
+    let cam = Camera {
+        eye: Vec3::new(x, y, z),
+        yaw: yaw.to_radians(),
+        pitch: pitch.to_radians(),
+    };
+    if cam.is_valid() {
+        Ok(cam)
+    } else {
+        Err(format!(
+            "camera {s:?}: numbers must be finite and the pitch within (-90, 90) degrees"
+        ))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

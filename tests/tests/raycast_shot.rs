@@ -187,7 +187,7 @@ async fn bad_requests_are_refused_with_a_reason() {
     for (query, says) in [
         ("", "camera is missing"),
         ("?camera=1,2,3", "five numbers"),
-        ("?camera=1,2,3,0,95", "straight up or down"),
+        ("?camera=1,2,3,0,95", "pitch within (-90, 90) degrees"),
         ("?camera=1e9,0,100,0,-10", "away from the terrain"),
         ("?camera=0,0,9000,0,-10&size=4096x4096", "size"),
         ("?camera=0,0,9000,0,-10&size=640", "size"),

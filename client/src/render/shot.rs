@@ -236,30 +236,7 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
     Ok((dim(w)?, dim(h)?))
 }
 
-/// Parses `x,y,z,yaw,pitch`: metres east and north of the terrain's south-west sample, metres
-/// of height, degrees counter-clockwise from east, degrees of elevation (negative looks down).
-pub fn parse_camera(s: &str) -> Result<Camera, String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("camera {s:?} is not five numbers x,y,z,yaw,pitch"))?;
-    let [x, y, z, yaw, pitch] = v[..] else {
-        return Err(format!("camera {s:?} is not five numbers x,y,z,yaw,pitch"));
-    };
-    let cam = Camera {
-        eye: glam::Vec3::new(x, y, z),
-        yaw: yaw.to_radians(),
-        pitch: pitch.to_radians(),
-    };
-    if cam.is_valid() {
-        Ok(cam)
-    } else {
-        Err(format!(
-            "camera {s:?}: numbers must be finite and the pitch within (-90, 90) degrees"
-        ))
-    }
-}
+pub use relief_proto::view::parse_camera;
 
 /// Parses `x,y,z,yaw,pitch[,fov]`: a camera as [`parse_camera`] reads it, and a vertical field
 /// of view in degrees (1 to 120).

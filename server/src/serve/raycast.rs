@@ -12,7 +12,7 @@ use axum::extract::{Query, State};
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
 use relief_proto::msg::WireCamera;
-use relief_proto::view::{Camera, Lens};
+use relief_proto::view::{Lens, parse_camera};
 use std::sync::Arc;
 
 /// The image size when the request names none.
@@ -35,23 +35,6 @@ pub struct RaycastQuery {
     size: Option<String>,
     /// Vertical field of view, degrees.
     fov: Option<String>,
-}
-
-/// Parses `x,y,z,yaw,pitch` (angles in degrees), as `relief-client shot --camera` does.
-fn parse_camera(s: &str) -> Result<Camera, String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|p| p.trim().parse::<f32>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| format!("camera {s:?} is not five numbers x,y,z,yaw,pitch"))?;
-    let [x, y, z, yaw, pitch] = v[..] else {
-        return Err(format!("camera {s:?} is not five numbers x,y,z,yaw,pitch"));
-    };
-    Ok(Camera {
-        eye: glam::Vec3::new(x, y, z),
-        yaw: yaw.to_radians(),
-        pitch: pitch.to_radians(),
-    })
 }
 
 /// Parses `WxH` and checks it against [`view::MAX_PIXELS`].

@@ -93,6 +93,19 @@ const HEAVY_RESUME_NODES: u64 = 100_000;
 /// Memory a session holds before its LOD state: the WebSocket read buffer (see `ws.rs`).
 pub const SOCKET_BYTES: u64 = 4096;
 
+/// Refuses a hello of another protocol version.
+fn check_version(version: u32) -> Ended {
+    if version != PROTOCOL_VERSION {
+        return fail(
+            CloseReason::Version,
+            format!(
+                "protocol version {version} is not supported; this server speaks {PROTOCOL_VERSION}"
+            ),
+        );
+    }
+    Ok(())
+}
+
 /// Paces resumes per address: a resume of `nodes` interior nodes goes ahead once the address
 /// has paid for its earlier ones, at the configured rate; one that would wait longer than
 /// [`MAX_RESUME_WAIT`] is refused.
@@ -124,15 +137,7 @@ async fn open<'a>(
     state: &'a AppState,
     stats: &SessionStats,
 ) -> Result<(Opening<'a>, bool), (CloseReason, String)> {
-    if hello.version != PROTOCOL_VERSION {
-        return fail(
-            CloseReason::Version,
-            format!(
-                "protocol version {} is not supported; this server speaks {PROTOCOL_VERSION}",
-                hello.version
-            ),
-        );
-    }
+    check_version(hello.version)?;
     validate::params(&hello.lens, hello.tau, hello.budget)
         .map_err(|e| (CloseReason::BadParams, e))?;
     if let StreamKind::Tiles(tp) = hello.kind
@@ -315,15 +320,7 @@ where
     S: Stream<Item = Result<Message, E>> + Sink<Message> + Unpin + Send,
     E: StdError + Send + Sync + 'static,
 {
-    if hello.version != PROTOCOL_VERSION {
-        return fail(
-            CloseReason::Version,
-            format!(
-                "protocol version {} is not supported; this server speaks {PROTOCOL_VERSION}",
-                hello.version
-            ),
-        );
-    }
+    check_version(hello.version)?;
     if hello.resume.is_some() {
         return fail(
             CloseReason::BadParams,
