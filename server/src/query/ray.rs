@@ -226,6 +226,27 @@ fn axis(o: f64, d: f64, inv: f64, lo: f64, hi: f64) -> (f64, f64) {
     }
 }
 
+/// The node after node `(x, y)` at shift `l` along the ray, which leaves it eastwards or
+/// westwards (`across_x`, step `sx`) and northwards or southwards (`across_y`, step `sy`), both at
+/// a corner; a level up (below `top`) when that node lies in another parent.
+#[inline]
+fn next_node(
+    (x, y, l): (i64, i64, u32),
+    across_x: bool,
+    across_y: bool,
+    (sx, sy): (i64, i64),
+    top: u32,
+) -> (i64, i64, u32) {
+    let (px, py) = (x >> 1, y >> 1);
+    let nx = if across_x { x + sx } else { x };
+    let ny = if across_y { y + sy } else { y };
+    if l < top && (nx >> 1 != px || ny >> 1 != py) {
+        (nx >> 1, ny >> 1, l + 1)
+    } else {
+        (nx, ny, l)
+    }
+}
+
 /// `ceil(x) - 1`, at least 0: the first of the closed unit intervals `[k, k+1]` holding `x`.
 #[inline]
 fn ceil_minus_one(x: f64) -> u32 {
@@ -360,17 +381,8 @@ impl Terrain {
                 if te >= t1 {
                     break;
                 }
-                let (px, py) = (x >> 1, y >> 1);
-                if tx <= ty {
-                    x += sx;
-                }
-                if ty <= tx {
-                    y += sy;
-                }
+                (x, y, l) = next_node((x, y, l), tx <= ty, ty <= tx, (sx, sy), top);
                 t = te;
-                if l < top && (x >> 1 != px || y >> 1 != py) {
-                    (x, y, l) = (x >> 1, y >> 1, l + 1);
-                }
             } else if l > 0 {
                 // Under the node's max somewhere: down to the child the ray is in at `t`.
                 let half = size / 2.0;
@@ -415,17 +427,8 @@ impl Terrain {
                 if te >= t1 {
                     break;
                 }
-                let (px, py) = (x >> 1, y >> 1);
-                if tx <= ty {
-                    x += sx;
-                }
-                if ty <= tx {
-                    y += sy;
-                }
+                (x, y, l) = next_node((x, y, l), tx <= ty, ty <= tx, (sx, sy), top);
                 t = te;
-                if top > 0 && (x >> 1 != px || y >> 1 != py) {
-                    (x, y, l) = (x >> 1, y >> 1, l + 1);
-                }
             }
             if best.is_some_and(|b| t > b.t) {
                 break;
