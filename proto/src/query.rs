@@ -9,7 +9,9 @@
 //! Positions are world metres in the terrain's frame ([`crate::tree::WorldFrame`]): x east
 //! from the westmost column, y north from the southmost row, z up.
 
-use crate::codec::{Decode, Encode};
+use crate::codec::{
+    Decode, DecodeError, Decoder, Encode, decode_seq, decode_text, impl_borrow_decode,
+};
 use serde::{Deserialize, Serialize};
 
 /// Most queries in one batch.
@@ -97,8 +99,9 @@ pub enum Fault {
     Negative,
 }
 
-/// The answer to one query, in the kind of the query (or an error).
-#[derive(Clone, Debug, PartialEq, Encode, Decode, Serialize, Deserialize)]
+/// The answer to one query, in the kind of the query (or an error). Decoded by hand, so that
+/// an error's message reserves no memory before its bytes arrive ([`decode_text`]).
+#[derive(Clone, Debug, PartialEq, Encode, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Answer {
     /// For [`Query::Height`].
@@ -138,8 +141,9 @@ pub enum Answer {
 }
 
 /// A batch of queries: from the client on a query session, or the binary body of
-/// `POST /v1/query`.
-#[derive(Clone, Debug, PartialEq, Encode, Decode, Serialize, Deserialize)]
+/// `POST /v1/query`. Decoded by hand ([`decode_seq`]), so that a frame's claimed length
+/// reserves no memory before its queries arrive.
+#[derive(Clone, Debug, PartialEq, Encode, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct QueryBatch {
     /// Chosen by the client; its answers carry it back (batches may be pipelined).
@@ -150,8 +154,8 @@ pub struct QueryBatch {
     pub queries: Vec<Query>,
 }
 
-/// The answers to a batch, one per query in the same order.
-#[derive(Clone, Debug, PartialEq, Encode, Decode, Serialize, Deserialize)]
+/// The answers to a batch, one per query in the same order (decoded as [`QueryBatch`] is).
+#[derive(Clone, Debug, PartialEq, Encode, Serialize, Deserialize)]
 pub struct AnswerBatch {
     /// The batch's id.
     pub id: u64,
@@ -159,8 +163,72 @@ pub struct AnswerBatch {
     pub answers: Vec<Answer>,
 }
 
-/// Why a whole batch was refused (its items are not answered).
-#[derive(Clone, Debug, PartialEq, Eq, Encode, Decode, Serialize, Deserialize)]
+impl<C> Decode<C> for QueryBatch {
+    fn decode<D: Decoder<Context = C>>(d: &mut D) -> Result<Self, DecodeError> {
+        Ok(QueryBatch {
+            id: u64::decode(d)?,
+            queries: decode_seq(d)?,
+        })
+    }
+}
+impl_borrow_decode!(QueryBatch);
+
+impl<C> Decode<C> for AnswerBatch {
+    fn decode<D: Decoder<Context = C>>(d: &mut D) -> Result<Self, DecodeError> {
+        Ok(AnswerBatch {
+            id: u64::decode(d)?,
+            answers: decode_seq(d)?,
+        })
+    }
+}
+impl_borrow_decode!(AnswerBatch);
+
+impl<C> Decode<C> for Answer {
+    fn decode<D: Decoder<Context = C>>(d: &mut D) -> Result<Self, DecodeError> {
+        // The variant index, then the fields in order, as the derived encoding writes them.
+        Ok(match u32::decode(d)? {
+            0 => Answer::Height {
+                height: Decode::decode(d)?,
+                normal: Decode::decode(d)?,
+            },
+            1 => Answer::Hat {
+                hot: Decode::decode(d)?,
+                hat: Decode::decode(d)?,
+                normal: Decode::decode(d)?,
+            },
+            2 => Answer::Ray(Decode::decode(d)?),
+            3 => Answer::Sight {
+                visible: Decode::decode(d)?,
+                blocked_at: Decode::decode(d)?,
+                distance: Decode::decode(d)?,
+            },
+            4 => Answer::Error {
+                fault: Decode::decode(d)?,
+                message: decode_text(d)?,
+            },
+            v => {
+                return Err(DecodeError::OtherString(format!(
+                    "answer kind {v} does not exist (0 to 4)"
+                )));
+            }
+        })
+    }
+}
+impl_borrow_decode!(Answer);
+
+impl<C> Decode<C> for BatchRefused {
+    fn decode<D: Decoder<Context = C>>(d: &mut D) -> Result<Self, DecodeError> {
+        Ok(BatchRefused {
+            id: u64::decode(d)?,
+            reason: decode_text(d)?,
+        })
+    }
+}
+impl_borrow_decode!(BatchRefused);
+
+/// Why a whole batch was refused (its items are not answered). Decoded by hand, as
+/// [`Answer`] is.
+#[derive(Clone, Debug, PartialEq, Eq, Encode, Serialize, Deserialize)]
 pub struct BatchRefused {
     /// The batch's id.
     pub id: u64,
@@ -262,6 +330,48 @@ mod tests {
                 at: [1.0, 2.0, 3.0]
             }]
         );
+    }
+
+    #[test]
+    fn hand_decoded_answers_read_back_what_the_derived_encoding_writes() {
+        let answers = vec![
+            Answer::Height {
+                height: 1.5,
+                normal: [0.0, 0.6, 0.8],
+            },
+            Answer::Hat {
+                hot: 2.0,
+                hat: -3.0,
+                normal: [0.0, 0.0, 1.0],
+            },
+            Answer::Ray(None),
+            Answer::Ray(Some(RayHit {
+                point: [1.0, 2.0, 3.0],
+                distance: 4.0,
+                normal: [0.0, 0.0, 1.0],
+                cell: [5, 300],
+            })),
+            Answer::Sight {
+                visible: false,
+                blocked_at: Some([1.0; 3]),
+                distance: Some(9.0),
+            },
+            Answer::Error {
+                fault: Fault::Outside,
+                message: "point (-5, 0) lies outside the terrain; ünïcode".repeat(20),
+            },
+        ];
+        let b = AnswerBatch { id: 3, answers };
+        assert_eq!(decode::<AnswerBatch>(&encode(&b), 1 << 20).unwrap(), b);
+        let r = BatchRefused {
+            id: 4,
+            reason: "too many".into(),
+        };
+        assert_eq!(decode::<BatchRefused>(&encode(&r), 1 << 20).unwrap(), r);
+        // A kind that does not exist, invalid UTF-8, and a message shorter than it claims.
+        assert!(decode::<Answer>(&[5], 1 << 20).is_err());
+        assert!(decode::<Answer>(&[4, 0, 2, 0xC3, 0x28], 1 << 20).is_err());
+        assert!(decode::<Answer>(&[4, 0, 251, 0x00, 0x10, b'a'], 1 << 20).is_err());
     }
 
     #[test]
