@@ -10,6 +10,7 @@
 
 use crate::flight::{PathSpec, server_path};
 use crate::http;
+use crate::load::stats::Dist;
 use crate::session::{Session, SessionConfig};
 use futures_util::future::BoxFuture;
 use relief_proto::msg::{CrackMode, StreamKind, TileStreamParams};
@@ -65,34 +66,6 @@ pub struct ChaosOptions {
     pub reconnect_deadline: Duration,
 }
 
-/// Percentiles of a set of values.
-#[derive(Clone, Copy, Debug, Default, Serialize)]
-pub struct Spread {
-    /// How many.
-    pub count: usize,
-    /// Median.
-    pub p50: f64,
-    /// 99th percentile.
-    pub p99: f64,
-    /// Largest.
-    pub max: f64,
-}
-
-impl Spread {
-    fn of(mut v: Vec<f64>) -> Spread {
-        if v.is_empty() {
-            return Spread::default();
-        }
-        v.sort_by(f64::total_cmp);
-        Spread {
-            count: v.len(),
-            p50: crate::flight::quantile(&v, 0.5),
-            p99: crate::flight::quantile(&v, 0.99),
-            max: v[v.len() - 1],
-        }
-    }
-}
-
 /// What a run saw.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct ChaosReport {
@@ -113,7 +86,7 @@ pub struct ChaosReport {
     /// Sessions that reconnected at least once.
     pub sessions_reconnected: usize,
     /// Reconnection times, from noticing the drop to the new welcome, milliseconds.
-    pub reconnect_gap_ms: Spread,
+    pub reconnect_gap_ms: Dist,
     /// Queries answered by the prober.
     pub queries_ok: u64,
     /// Queries that failed (an error status or no answer).
@@ -346,7 +319,7 @@ pub async fn run(opts: &ChaosOptions, drill: &mut dyn Drill) -> Result<ChaosRepo
     errors.sort();
     errors.dedup();
     r.errors = errors.into_iter().take(5).collect();
-    r.reconnect_gap_ms = Spread::of(gaps);
+    r.reconnect_gap_ms = Dist::of(gaps);
     Ok(r)
 }
 
@@ -392,14 +365,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn half_the_sessions_are_tiles_and_spreads_are_ordered() {
+    fn half_the_sessions_are_tiles() {
         assert_eq!(stream_of(0, 4), StreamKind::Vertex);
         assert_eq!(stream_of(1, 4), StreamKind::Vertex);
         assert!(matches!(stream_of(2, 4), StreamKind::Tiles(_)));
-        let s = Spread::of((1..=100).map(f64::from).collect());
-        assert_eq!((s.count, s.max), (100, 100.0));
-        assert!(s.p50 <= s.p99 && s.p99 <= s.max);
-        assert_eq!(Spread::of(Vec::new()).count, 0);
     }
 
     #[tokio::test]

@@ -29,8 +29,10 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Serve a terrain: WebSocket sessions on /v1/stream, HTTP on /v1/terrain, /v1/lod,
-    /// /v1/heights, /v1/sessions, /metrics, /healthz and /readyz. With no options it serves the
+    /// Serve a terrain: WebSocket sessions on /v1/stream (vertex, tiles or queries), HTTP on
+    /// /v1/terrain, /v1/lod, /v1/heights, /v1/query, /v1/raycast.png, /v1/sessions, /metrics,
+    /// /healthz and /readyz, the standard formats under /cesium and /tiles, and the pages. With
+    /// no options it serves the
     /// embedded terrain on 127.0.0.1:8080. Stops on SIGTERM or Ctrl-C after draining.
     Serve(Box<crate::serve::ServeArgs>),
     /// Preprocess a DEM into a store (the vertex quadtree, memory-mapped by the server).

@@ -21,7 +21,7 @@ pub struct Dist {
 }
 
 impl Dist {
-    fn of(mut v: Vec<f64>) -> Dist {
+    pub(crate) fn of(mut v: Vec<f64>) -> Dist {
         if v.is_empty() {
             return Dist::default();
         }

@@ -39,9 +39,14 @@ impl Terrain {
                 } else {
                     Interp::Bilinear
                 };
+                // The surface's own height unless bicubic is asked: not located twice.
                 self.surface(x, y).and_then(|s| {
+                    let height = match interp {
+                        Interp::Bilinear => s.height,
+                        Interp::Bicubic => self.height_with(x, y, interp)?,
+                    };
                     Ok(Answer::Height {
-                        height: self.height_with(x, y, interp)?,
+                        height,
                         normal: normal32(s.normal),
                     })
                 })
