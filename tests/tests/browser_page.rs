@@ -11,7 +11,7 @@
 //!   desync.
 //! - The wasm and relief-proto agree on a real session recorded here: the hello, poses, acks,
 //!   digests, tiles and every added tile's geometry, bit for bit (in Node.js, no browser).
-//! - The crack test in the page's pixels (ignored for now: isolated one-pixel holes remain).
+//! - The crack test in the page's pixels: none with patches, some without.
 //!
 //! They need Node.js 20+, Chromium and `web/node_modules` (the README's test command installs
 //! them), and for the pkg check the `wasm32-unknown-unknown` target and wasm-bindgen-cli 0.2.130
@@ -447,13 +447,9 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
 /// degrees and grazing 3 degrees down, at tau 1. With crack patches no background pixel should
 /// be enclosed by terrain; with nothing against cracks some are (so the test can fail).
 ///
-/// **Fails today, hence ignored:** with patches the page shows a few isolated one-pixel holes
-/// in mid-terrain (1 to 5 pixels over about 30 screenshots of 480x270, against 118 to 180
-/// without patches), where `render_tiles.rs` asserts none for the wgpu client. Suspected: T-junctions where a finer
-/// tile's edge vertex lies exactly on the coarser edge (no patch) and the f32 world positions
-/// put it a hair off the line. Run it with `--ignored`.
+/// With patches this found 1 to 5 isolated one-pixel holes in about 50 screenshots until the
+/// fine tiles' raised patches also closed T-junctions (store format 4, `docs/protocol.md` 15).
 #[tokio::test(flavor = "multi_thread")]
-#[ignore = "the page shows isolated 1-pixel holes with patches: see the doc comment"]
 async fn the_page_shows_no_crack_with_patches_and_cracks_without() {
     use relief_client::render::offscreen::enclosed_background;
     prerequisites();

@@ -18,7 +18,10 @@
 //! - a *dropped* patch belongs to the coarse tile: `A` and `C` are its vertices, `B` the finer
 //!   level's sample inside the segment, below the segment;
 //! - a *raised* patch belongs to the fine tile: `A`, `B` and `C` are its own vertices, `B` above
-//!   the coarser level's segment `A-C` (so the triangle lies below its own edge).
+//!   the coarser level's segment `A-C` (so the triangle lies below its own edge), or exactly on
+//!   it. There the triangle is degenerate, but the junction is a T: after rounding to screen
+//!   space `B` falls a hair to one side of the coarse edge and a rasterizer may leave isolated
+//!   pixels uncovered; the triangle shares its edges with both tiles' and covers that sliver.
 //!
 //! Edges on the terrain's border have no neighbour and no patches. The patch blob holds a 4-bit
 //! order `k`, then for each edge in [`EDGES`] order that has a neighbour: one code per own
@@ -242,7 +245,8 @@ fn line(za: i32, zc: i32, pos: (u32, u32, u32), zb: i32) -> (i64, std::cmp::Orde
 }
 
 /// The patches of tile `t` whose vertex heights are `z`, with `sample(col, row)` the
-/// full-resolution heights: paper 001's steps 1-4 for dropped cracks, plus raised ones.
+/// full-resolution heights: paper 001's steps 1-4 for dropped cracks, plus raised ones and
+/// T-junctions.
 pub fn find_patches(
     shape: &TileShape,
     t: TileId,
@@ -263,7 +267,7 @@ pub fn find_patches(
                 });
             }
         } else if let Some(b) = seg.b
-            && line(za, zc, seg.pos, z[b as usize]).1.is_gt()
+            && !line(za, zc, seg.pos, z[b as usize]).1.is_lt()
         {
             p.raised.push([seg.a, b, seg.c]);
         }

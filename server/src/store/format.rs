@@ -21,8 +21,9 @@ use std::io::Write;
 
 /// File magic: the first eight bytes of every store.
 pub const MAGIC: &[u8; 8] = b"RELIEFST";
-/// The format version this build writes and reads.
-pub const VERSION: u32 = 3;
+/// The format version this build writes and reads. 3: quad-adjacent node records; 4: a fine
+/// tile's raised patches also close the segments its vertex lies exactly on (T-junctions).
+pub const VERSION: u32 = 4;
 /// Header size in bytes.
 pub const HEADER_LEN: usize = 256;
 /// Section order in the file.
