@@ -5,10 +5,12 @@
 //! - [`raw`]: raw sockets for the hostile-input tests.
 //! - [`bystander`]: a session that flies on during an attack and records its latency.
 //! - [`http`]: plain HTTP/1.1 GETs over a socket, status and headers as sent.
+//! - [`shots`]: screenshots, not blank and against golden images.
 
 pub mod bystander;
 pub mod http;
 pub mod raw;
+pub mod shots;
 
 use relief_proto::codec;
 use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, StreamKind};

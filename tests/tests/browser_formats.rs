@@ -26,6 +26,7 @@ use relief_server::formats::sampler::{Points, Resampler};
 use relief_server::geo::GeoTransform;
 use relief_server::geo::tiling::{Scheme, TileXyz, cesium_level_error};
 use relief_server::store::Store;
+use relief_tests::shots::{assert_golden, bless, not_blank};
 use relief_tests::{ChildServer, free_addr, node_json, test_store};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
@@ -175,71 +176,6 @@ fn all_local(requests: &Value) -> usize {
 
 // ---------------------------------------------------------------------------------------------
 // Images
-
-/// How far apart two images are: the mean absolute difference over all RGB channels (0-255),
-/// and the fraction of pixels with some channel off by more than [`FAR`].
-fn difference(a: &image::RgbaImage, b: &image::RgbaImage) -> (f64, f64) {
-    let (mean, far, _) = difference3(a, b);
-    (mean, far)
-}
-
-/// [`difference`], and the fraction of pixels that differ at all.
-fn difference3(a: &image::RgbaImage, b: &image::RgbaImage) -> (f64, f64, f64) {
-    assert_eq!(a.dimensions(), b.dimensions(), "image sizes differ");
-    let (mut sum, mut far, mut any) = (0u64, 0u64, 0u64);
-    for (p, q) in a.pixels().zip(b.pixels()) {
-        let mut worst = 0;
-        for c in 0..3 {
-            let d = (i32::from(p[c]) - i32::from(q[c])).unsigned_abs();
-            sum += u64::from(d);
-            worst = worst.max(d);
-        }
-        if worst > FAR {
-            far += 1;
-        }
-        if worst > 0 {
-            any += 1;
-        }
-    }
-    let n = u64::from(a.width()) * u64::from(a.height());
-    (
-        sum as f64 / (3 * n) as f64,
-        far as f64 / n as f64,
-        any as f64 / n as f64,
-    )
-}
-
-/// A channel difference that counts a pixel as different.
-const FAR: u32 = 32;
-
-/// Asserts that an image is not blank: a fifth of it or more differs from its commonest colour
-/// (the background), the brightness varies and it has hundreds of colours (a page that drew
-/// nothing, or only its background or an error message, has a handful). Returns (the fraction unlike the commonest colour, brightness std dev).
-fn not_blank(img: &image::RgbaImage, what: &str) -> (f64, f64) {
-    let mut counts: HashMap<[u8; 3], u32> = HashMap::new();
-    let mut lum = Vec::with_capacity(img.pixels().len());
-    for p in img.pixels() {
-        *counts.entry([p[0], p[1], p[2]]).or_default() += 1;
-        lum.push(0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2]));
-    }
-    let n = lum.len() as f64;
-    let commonest = counts.values().max().copied().unwrap_or(0);
-    let unlike = 1.0 - f64::from(commonest) / n;
-    let mean = lum.iter().sum::<f64>() / n;
-    let sd = (lum.iter().map(|l| (l - mean).powi(2)).sum::<f64>() / n).sqrt();
-    assert!(
-        unlike > 0.2 && sd > 8.0 && counts.len() > 500,
-        "{what} looks blank: {:.0} % of it unlike its commonest colour, brightness sd {sd:.1}, \
-         {} colours",
-        unlike * 100.0,
-        counts.len()
-    );
-    (unlike, sd)
-}
-
-fn bless() -> bool {
-    std::env::var_os("RELIEF_BLESS").is_some()
-}
 
 /// Where a test's screenshots go (kept after the run, to look at on failure).
 fn shot(name: &str) -> PathBuf {
@@ -532,57 +468,25 @@ async fn cesium_samples_the_terrain_and_draws_the_golden_view_from_loopback_only
         "Cesium's heights are {max} m from the store's, over the geometric error {error} m"
     );
 
-    // The screenshot: not blank, and the golden view. SwiftShader rendered the same frame to
-    // the bit in every run here (mean difference 0, no pixel off), so the tolerance only
-    // leaves room for rounding that differs on other CPUs or Chromium builds (a level or two
-    // on some channels). It is below the smallest real changes measured against this golden
-    // image: the camera turned 0.5 degrees (mean 1.42, 0.21 % of pixels off by more than 32),
-    // heights 5 % too high (1.64, 0.35 %), the camera 2 % farther (2.19, 1.6 %), the sun half
-    // an hour later (8.8, 0 %), no vertex normals (40.7, 77 %).
     let img = image::open(&actual).expect("the screenshot").to_rgba8();
     let (unlike, sd) = not_blank(&img, "the Cesium screenshot");
-    let golden = repo().join("web/tests/golden/cesium.png");
-    if bless() {
-        std::fs::create_dir_all(golden.parent().unwrap()).unwrap();
-        img.save(&golden).unwrap();
-        img.save(repo().join("docs/img/cesium.png")).unwrap();
-    }
-    let want = image::open(&golden)
-        .unwrap_or_else(|e| panic!("{}: {e} (RELIEF_BLESS=1 writes it)", golden.display()))
-        .to_rgba8();
-    let (mean, far, any) = difference3(&img, &want);
     println!(
-        "cesium: screenshot {}x{}, {:.0} % unlike its commonest colour, brightness sd {sd:.1}; \
-         vs golden: mean |difference| {mean:.4} levels (at most {GOLDEN_MEAN}), {:.4} % of \
-         pixels off by more than {FAR} (at most {:.1} %), {:.4} % of pixels differ at all",
+        "cesium: screenshot {}x{}, {:.0} % unlike its commonest colour, brightness sd {sd:.1}",
         img.width(),
         img.height(),
         unlike * 100.0,
-        far * 100.0,
-        GOLDEN_FAR * 100.0,
-        any * 100.0
     );
-    assert!(
-        mean <= GOLDEN_MEAN && far <= GOLDEN_FAR,
-        "the Cesium view is not the golden one: mean difference {mean:.3} (at most \
-         {GOLDEN_MEAN}), {:.3} % pixels off (at most {:.1} %); this render is at {}",
-        far * 100.0,
-        GOLDEN_FAR * 100.0,
-        actual.display()
-    );
-    let mirrored = image::imageops::flip_horizontal(&want);
-    let (m_mean, m_far) = difference(&mirrored, &want);
-    assert!(
-        m_mean > GOLDEN_MEAN && m_far > GOLDEN_FAR,
-        "the tolerance cannot tell the view from its mirror image ({m_mean:.2}, {m_far:.3})"
-    );
+    // The golden view. Its tolerance (`relief_tests::shots`) is below the smallest real changes
+    // measured against this golden image: the camera turned 0.5 degrees (mean 1.42, 0.21 % of
+    // pixels off by more than 32), heights 5 % too high (1.64, 0.35 %), the camera 2 % farther
+    // (2.19, 1.6 %), the sun half an hour later (8.8, 0 %), no vertex normals (40.7, 77 %).
+    let golden = repo().join("web/tests/golden/cesium.png");
+    assert_golden(&img, &actual, &golden, "the Cesium view");
+    if bless() {
+        img.save(repo().join("docs/img/cesium.png")).unwrap();
+    }
     drop(server);
 }
-
-/// Largest mean absolute channel difference from the golden image, levels of 255.
-const GOLDEN_MEAN: f64 = 0.5;
-/// Largest fraction of pixels off by more than [`FAR`] from the golden image.
-const GOLDEN_FAR: f64 = 0.001;
 
 /// One MapLibre run: the page with `encoding`, its heights against Relief's in each view.
 async fn maplibre(url: &str, encoding: &str, step: f64, screenshot: &Path) {

@@ -6,7 +6,9 @@
 //! - The committed `web/page/pkg/` is what `web/build-wasm.sh` builds from the sources now.
 //! - The page loads with no console error, connects, flies poses of the standard path, draws
 //!   frames at 1280x720 with no desync, and every request stays on loopback; its screenshot is
-//!   not blank (`RELIEF_BLESS=1` writes it to `docs/img/page.png`).
+//!   not blank.
+//! - The page's start view against a committed golden image (`RELIEF_BLESS=1` rewrites it and
+//!   the README's `docs/img/page.png`).
 //! - The server killed and restarted under the page: it says so, reconnects and resumes, with no
 //!   desync.
 //! - The wasm and relief-proto agree on a real session recorded here: the hello, poses, acks,
@@ -19,6 +21,7 @@
 
 use relief_server::serve::config::Limits;
 use relief_tests::http::{get, header};
+use relief_tests::shots::{assert_golden, bless, not_blank};
 use relief_tests::{ChildServer, TestServer, free_addr, node_json, serve_tiles_of};
 use serde_json::Value;
 use std::collections::HashMap;
@@ -117,23 +120,6 @@ fn the_committed_wasm_is_what_the_sources_build() {
     );
 }
 
-/// Asserts that a screenshot shows terrain: a fifth of it or more unlike its commonest colour,
-/// and hundreds of colours.
-fn not_blank(img: &image::RgbaImage) {
-    let mut counts: HashMap<[u8; 3], u32> = HashMap::new();
-    for p in img.pixels() {
-        *counts.entry([p[0], p[1], p[2]]).or_default() += 1;
-    }
-    let n = img.pixels().len() as f64;
-    let unlike = 1.0 - f64::from(counts.values().max().copied().unwrap_or(0)) / n;
-    assert!(
-        unlike > 0.2 && counts.len() > 500,
-        "the page's screenshot looks blank: {:.0} % unlike its commonest colour, {} colours",
-        unlike * 100.0,
-        counts.len()
-    );
-}
-
 #[tokio::test(flavor = "multi_thread")]
 async fn the_page_flies_the_standard_path_and_draws_it_without_desync() {
     prerequisites();
@@ -202,9 +188,64 @@ async fn the_page_flies_the_standard_path_and_draws_it_without_desync() {
     assert!(out["fps"].as_f64().unwrap() > 0.5, "{out}");
     let img = image::open(&shot).expect("the screenshot").to_rgba8();
     assert_eq!(img.dimensions(), (1280, 720));
-    not_blank(&img);
-    if std::env::var_os("RELIEF_BLESS").is_some() {
-        std::fs::copy(&shot, repo().join("docs/img/page.png")).unwrap();
+    not_blank(&img, "the page's screenshot");
+}
+
+/// The page's start view of the embedded terrain, held still until the server has answered
+/// completely, against a committed golden image (`web/tests/golden/page.png`; the tolerance is
+/// `relief_tests::shots`'). `RELIEF_BLESS=1` rewrites it and the README's lead picture,
+/// `docs/img/page.png` (the same view with the HUD).
+#[tokio::test(flavor = "multi_thread")]
+async fn the_page_draws_the_golden_view() {
+    prerequisites();
+    let server = ChildServer::start(Path::new(BIN), free_addr(), &[]).await;
+    let url = format!("http://{}", server.addr);
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("browser");
+    std::fs::create_dir_all(&dir).unwrap();
+    let still = async |query: &str, name: &str| {
+        let shot = dir.join(name);
+        let out = node_json(
+            "page.mjs",
+            &url,
+            &[
+                "--path",
+                "none",
+                "--width",
+                "960",
+                "--height",
+                "540",
+                "--fps-seconds",
+                "1",
+                "--query",
+                query,
+                "--screenshot",
+                &shot.display().to_string(),
+            ],
+        )
+        .await;
+        assert_eq!(out["relief"]["desyncs"], 0, "{}", out["relief"]);
+        let img = image::open(&shot).expect("the screenshot").to_rgba8();
+        assert_eq!(img.dimensions(), (960, 540));
+        (shot, img, out)
+    };
+    let (shot, img, out) = still("hud=0", "page-golden.png").await;
+    let (unlike, sd) = not_blank(&img, "the page's start view");
+    println!(
+        "page start view: {} triangles in {} tiles, {:.0} % unlike its commonest colour, \
+         brightness sd {sd:.1}",
+        out["relief"]["triangles"],
+        out["relief"]["tiles"],
+        unlike * 100.0
+    );
+    assert_golden(
+        &img,
+        &shot,
+        &repo().join("web/tests/golden/page.png"),
+        "the page's start view",
+    );
+    if bless() {
+        let (lead, _, _) = still("", "page-lead.png").await;
+        std::fs::copy(lead, repo().join("docs/img/page.png")).unwrap();
     }
 }
 
@@ -271,12 +312,14 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
         ClientMsg, CrackMode, Hello, PROTOCOL_VERSION, Resume, ServerMsg, StreamKind,
         TileStreamParams, WireCamera, WireLens,
     };
-    use relief_proto::tile::geometry::tile_triangles;
+    use relief_proto::tile::draw::{TileMesh, arrived_by_split};
     use relief_proto::tile::mirror::TileMirror;
+    use std::collections::HashSet;
     use tokio_tungstenite::tungstenite::Message;
 
-    // A real tile session along a stretch of the standard path, recorded frame by frame.
-    let server = TestServer::start(Limits::default()).await;
+    // A real tile session along a stretch of the standard path, recorded frame by frame, on the
+    // crop built with 16-cell tiles (five levels: tiles split and merge as the camera flies).
+    let (_dir, server) = serve_tiles_of(16, relief_proto::tile::body::MeshKind::Grid).await;
     let lens = WireLens {
         width: 1280,
         height: 720,
@@ -330,6 +373,7 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
     // relief-proto's own answers.
     let mut mirror = None;
     let mut want = Vec::new();
+    let mut morphing = 0;
     let mut terrain = None;
     for f in &frames {
         match decode::<ServerMsg>(f, 1 << 24).unwrap() {
@@ -345,30 +389,33 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
             ServerMsg::Delta(d) => {
                 let m = mirror.as_mut().unwrap();
                 let t = terrain.as_ref().unwrap();
-                let frame = t.geometry().unwrap().frame;
+                let geom = t.geometry().unwrap();
                 let c = m.apply(&d.delta).unwrap();
+                let bits = |v: &[f32]| v.iter().map(|x| u64::from(x.to_bits())).sum::<u64>();
                 let geometry: Vec<Value> = c
                     .added
                     .iter()
                     .map(|&i| {
-                        let g = tile_triangles(&frame, t.z_quantum, m.tile(i).unwrap(), None);
-                        let idx: Vec<u32> =
-                            g.mesh.iter().chain(&g.patches).flatten().copied().collect();
-                        let bits: u64 = g
-                            .positions
-                            .iter()
-                            .flatten()
-                            .map(|x| u64::from(x.to_bits()))
-                            .sum();
+                        let g = TileMesh::of(&geom, m.tile(i).unwrap(), None);
                         serde_json::json!({
-                            "positions": 3 * g.positions.len(),
-                            "indices": idx.len(),
-                            "mesh": g.mesh.len(),
-                            "position_bits": bits,
-                            "index_sum": idx.iter().map(|&x| u64::from(x)).sum::<u64>(),
+                            "positions": g.positions.len(),
+                            "normals": g.normals.len(),
+                            "indices": g.indices.len(),
+                            "mesh": g.counts[0],
+                            "position_bits": bits(&g.positions),
+                            "normal_bits": bits(&g.normals),
+                            "index_sum": g.indices.iter().map(|&x| u64::from(x)).sum::<u64>(),
                         })
                     })
                     .collect();
+                let removed: HashSet<u32> = c.removed.iter().copied().collect();
+                let split: Vec<u32> = c
+                    .added
+                    .iter()
+                    .copied()
+                    .filter(|&i| arrived_by_split(m.shape(), i, |p| removed.contains(&p)))
+                    .collect();
+                morphing += split.len();
                 want.push(serde_json::json!({
                     "kind": "delta",
                     "digest": format!("{:016x}", m.digest()),
@@ -376,6 +423,7 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
                     "added": c.added,
                     "evicted": c.evicted,
                     "geometry": geometry,
+                    "split": split,
                 }));
             }
             ServerMsg::Reconnect { .. } => panic!("no drain here"),
@@ -422,7 +470,9 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
     assert_eq!(msgs.len(), want.len());
     let mut tiles = 0;
     for (i, (g, w)) in msgs.iter().zip(&want).enumerate() {
-        for key in ["kind", "digest", "removed", "added", "evicted", "geometry"] {
+        for key in [
+            "kind", "digest", "removed", "added", "evicted", "geometry", "split",
+        ] {
             if !w[key].is_null() {
                 assert_eq!(g[key], w[key], "message {i}: {key}");
             }
@@ -435,8 +485,12 @@ async fn the_wasm_decoder_agrees_with_the_rust_codec() {
     }
     assert_eq!(got["resume_hello"], hex(&resume), "the resume hello");
     assert!(tiles >= 5, "the session added {tiles} tiles");
+    assert!(
+        morphing > 0,
+        "no tile arrived by a split: the morph list is untested"
+    );
     println!(
-        "wasm and Rust agree on {} messages ({tiles} tiles added)",
+        "wasm and Rust agree on {} messages ({tiles} tiles added, {morphing} by a split)",
         msgs.len()
     );
 }

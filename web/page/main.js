@@ -3,9 +3,13 @@
 // WebGL2. The page does no stitching: each tile arrives with its crack patches, and it draws
 // the triangles the wasm hands it.
 //
+// Shading as the wgpu client's: the hypsometric ramp, the sun on smooth normals, haze; tiles
+// that arrive by a split morph in from their parent's mesh over 0.25 s.
+//
 // Query options: ?tau=2, ?crack=patches|skirts|none, ?background=#rrggbb, ?wire=1, ?hud=0,
-// ?path=standard|stress (fly the camera path, ?poses=N of its poses, then hold; ?pitch=DEG
-// looks that far down instead of the path's own pitch, for crack tests looking down).
+// ?morph=0, ?path=standard|stress (fly the camera path, ?poses=N of its poses, then hold;
+// ?pitch=DEG looks that far down instead of the path's own pitch, for crack tests looking
+// down).
 // window.relief holds the counters the browser tests read.
 
 import init, {
@@ -68,15 +72,29 @@ if (!gl) {
   throw new Error('no WebGL2');
 }
 
+// A tile that arrived by a split morphs from its parent's mesh (pos.w, nrm.zw) to its own
+// (pos.z, nrm.xy) as alpha grows from 0 to 1 (the wgpu client's tiles.wgsl). Written as
+// a + (b - a) * alpha so that a vertex that never moves (a == b: the tile's boundary, patches,
+// skirts) stays bit for bit where its neighbours put it.
 const VS = `#version 300 es
-in vec3 pos;
+layout(location = 0) in vec4 pos;
+layout(location = 1) in vec4 nrm;
 uniform mat4 viewProj;
 uniform vec3 eye;
+uniform float alpha;
+uniform float extra;
 out vec3 rel;
 out float height;
+out vec3 normal;
 void main() {
-  rel = pos - eye;
-  height = pos.z;
+  vec3 p = vec3(pos.xy, pos.w + (pos.z - pos.w) * alpha);
+  rel = p - eye;
+  height = p.z;
+  vec2 nxy = nrm.zw + (nrm.xy - nrm.zw) * alpha;
+  // Patches and skirts shade like the surface they stand in for: their edge vertices carry the
+  // tile's smooth normals, their own vertices none (0, 0: straight up). Shaded flat, as
+  // vertical walls, the one-pixel patches of distant seams showed as dark dots.
+  normal = vec3(nxy, sqrt(max(1.0 - dot(nxy, nxy), 0.0)));
   gl_Position = viewProj * vec4(rel, 1.0);
 }`;
 
@@ -85,10 +103,12 @@ const FS = `#version 300 es
 precision highp float;
 in vec3 rel;
 in float height;
+in vec3 normal;
 uniform vec3 light;
 uniform vec3 haze;
 uniform float fogDistance;
-uniform float crack;
+uniform float extra;
+uniform float wire;
 uniform int lines;
 out vec4 colour;
 const vec4 STOPS[9] = vec4[9](
@@ -111,12 +131,15 @@ void main() {
     colour = vec4(0.05, 0.05, 0.07, 1.0);
     return;
   }
+  // The smooth normal where there is one, else the drawn triangle's flat one.
   vec3 n = normalize(cross(dFdx(rel), dFdy(rel)));
   if (n.z < 0.0) n = -n;
+  if (dot(normal, normal) > 1.0e-12) n = normalize(normal);
   vec3 c = ramp(height) * (0.30 + 0.95 * max(dot(n, light), 0.0));
   float fog = 1.0 - exp(-length(rel) / fogDistance);
   c = mix(c, haze, 0.45 * fog);
-  c = mix(c, vec3(0.95, 0.08, 0.06), 0.85 * crack);
+  // Under the wireframe, patches and skirts are tinted red.
+  c = mix(c, vec3(0.95, 0.08, 0.06), 0.85 * extra * wire);
   colour = vec4(pow(c, vec3(1.0 / 2.2)), 1.0);
 }`;
 
@@ -130,20 +153,26 @@ function compile(type, source) {
 const program = gl.createProgram();
 gl.attachShader(program, compile(gl.VERTEX_SHADER, VS));
 gl.attachShader(program, compile(gl.FRAGMENT_SHADER, FS));
-gl.bindAttribLocation(program, 0, 'pos');
 gl.linkProgram(program);
 if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
 const uniform = (name) => gl.getUniformLocation(program, name);
 const U = {
   viewProj: uniform('viewProj'), eye: uniform('eye'), light: uniform('light'), haze: uniform('haze'),
-  fogDistance: uniform('fogDistance'), crack: uniform('crack'), lines: uniform('lines'),
+  fogDistance: uniform('fogDistance'), extra: uniform('extra'), wire: uniform('wire'),
+  lines: uniform('lines'), alpha: uniform('alpha'),
 };
+// The wgpu client's sun (client/src/render/frame.rs).
 const SUN = (() => {
-  const v = [-0.45, 0.35, 0.82];
+  const v = [-0.55, 0.45, 0.70];
   const l = Math.hypot(...v);
   return v.map((x) => x / l);
 })();
 const HAZE = colour(SKY, SKY).map((c) => c ** 2.2);
+// How long a tile that arrived by a split takes to morph in, seconds (the wgpu client's growth
+// duration); ?morph=0 turns the morph off.
+const GROWTH_S = query.get('morph') === '0' ? 0 : 0.25;
+// The arrival time of a tile drawn as it is.
+const SETTLED = -Infinity;
 
 /** GPU buffers of the tiles the session holds, by dense index. */
 const tiles = new Map();
@@ -152,17 +181,23 @@ function upload(index) {
   const g = session.geometry(index);
   if (!g) return null;
   const positions = g.positions();
+  const normals = g.normals();
   const indices = g.indices();
   const t = {
-    vao: gl.createVertexArray(), vbo: gl.createBuffer(), ibo: gl.createBuffer(), lines: null,
-    indices, mesh: g.mesh_triangles, extra: g.extra_triangles, active: false,
+    vao: gl.createVertexArray(), vbo: gl.createBuffer(), nbo: gl.createBuffer(),
+    ibo: gl.createBuffer(), lines: null, indices, mesh: g.mesh_triangles,
+    extra: g.extra_triangles, active: false, arrived: SETTLED,
   };
   g.free();
   gl.bindVertexArray(t.vao);
   gl.bindBuffer(gl.ARRAY_BUFFER, t.vbo);
   gl.bufferData(gl.ARRAY_BUFFER, positions, gl.STATIC_DRAW);
   gl.enableVertexAttribArray(0);
-  gl.vertexAttribPointer(0, 3, gl.FLOAT, false, 0, 0);
+  gl.vertexAttribPointer(0, 4, gl.FLOAT, false, 0, 0);
+  gl.bindBuffer(gl.ARRAY_BUFFER, t.nbo);
+  gl.bufferData(gl.ARRAY_BUFFER, normals, gl.STATIC_DRAW);
+  gl.enableVertexAttribArray(1);
+  gl.vertexAttribPointer(1, 4, gl.FLOAT, false, 0, 0);
   gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, t.ibo);
   gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, indices, gl.STATIC_DRAW);
   gl.bindVertexArray(null);
@@ -175,6 +210,7 @@ function drop(index) {
   if (!t) return;
   gl.deleteVertexArray(t.vao);
   gl.deleteBuffer(t.vbo);
+  gl.deleteBuffer(t.nbo);
   gl.deleteBuffer(t.ibo);
   if (t.lines) gl.deleteBuffer(t.lines.buffer);
   tiles.delete(index);
@@ -358,9 +394,14 @@ function connect() {
         if (t) t.active = false;
       }
       for (const i of session.evicted()) drop(i);
+      const split = new Set(session.split_added());
+      const arrival = performance.now() / 1000;
       for (const i of session.added()) {
         const t = tiles.get(i) ?? upload(i);
-        if (t) t.active = true;
+        if (t) {
+          t.active = true;
+          t.arrived = split.has(i) ? arrival : SETTLED;
+        }
       }
       const up = (performance.now() - t1) * 1000;
       relief.uploadUs.count += 1;
@@ -477,6 +518,11 @@ function resize() {
   }
 }
 
+/** How far tile `t` has morphed in at `seconds`: 0 on arrival by a split, then up to 1. */
+function morphAlpha(t, seconds) {
+  return GROWTH_S > 0 ? Math.min(1, Math.max(0, (seconds - t.arrived) / GROWTH_S)) : 1;
+}
+
 function frame(now) {
   const dt = Math.min(0.1, (now - lastFrame) / 1000);
   lastFrame = now;
@@ -505,13 +551,16 @@ function frame(now) {
       gl.polygonOffset(1, 1);
     }
     gl.uniform1i(U.lines, 0);
+    gl.uniform1f(U.wire, wire ? 1 : 0);
+    const seconds = now / 1000;
     for (const t of tiles.values()) {
       if (!t.active) continue;
       gl.bindVertexArray(t.vao);
-      gl.uniform1f(U.crack, 0);
+      gl.uniform1f(U.alpha, morphAlpha(t, seconds));
+      gl.uniform1f(U.extra, 0);
       gl.drawElements(gl.TRIANGLES, 3 * t.mesh, gl.UNSIGNED_INT, 0);
       if (t.extra > 0) {
-        gl.uniform1f(U.crack, wire ? 1 : 0);
+        gl.uniform1f(U.extra, 1);
         gl.drawElements(gl.TRIANGLES, 3 * t.extra, gl.UNSIGNED_INT, 12 * t.mesh);
       }
     }
@@ -522,6 +571,7 @@ function frame(now) {
         if (!t.active) continue;
         const lines = lineBuffer(t);
         gl.bindVertexArray(t.vao);
+        gl.uniform1f(U.alpha, morphAlpha(t, seconds));
         gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, lines.buffer);
         gl.drawElements(gl.LINES, lines.count, gl.UNSIGNED_INT, 0);
         gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, t.ibo);

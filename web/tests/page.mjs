@@ -1,11 +1,12 @@
 // Relief's own page (GET /) in headless Chromium: flies the first `--poses` poses of the
-// standard camera path at 10 Hz over a tile session, waits until the server has answered the
-// last one completely, measures the frame rate for `--fps-seconds`, takes a screenshot, and
-// prints one line of JSON: the page's counters (window.relief), fps, the console and the
-// request log.
+// standard camera path at 10 Hz over a tile session (or, with `--path none`, holds the page's
+// start view), waits until the server has answered the last pose completely, measures the
+// frame rate for `--fps-seconds`, takes a screenshot, and prints one line of JSON: the page's
+// counters (window.relief), fps, the console and the request log.
 //
-//   node web/tests/page.mjs http://127.0.0.1:PORT [--poses 100] [--screenshot out.png]
-//        [--width 1280] [--height 720] [--fps-seconds 3] [--query 'crack=none&...']
+//   node web/tests/page.mjs http://127.0.0.1:PORT [--poses 100] [--path standard|none]
+//        [--screenshot out.png] [--width 1280] [--height 720] [--fps-seconds 3]
+//        [--query 'crack=none&...']
 
 import { args, launch, report, within } from './browser.mjs';
 
@@ -14,25 +15,29 @@ const poses = Number(options.poses ?? 100);
 const width = Number(options.width ?? 1280);
 const height = Number(options.height ?? 720);
 const fpsSeconds = Number(options['fps-seconds'] ?? 3);
+const pathKind = options.path ?? 'standard';
 const started = Date.now();
 const browser = await launch({ width, height });
 const { page } = browser;
 let result;
 try {
   const extra = options.query ? `&${options.query}` : '';
-  await page.goto(`${base}/?path=standard&poses=${poses}${extra}`);
+  const flight = pathKind === 'none' ? '' : `path=${pathKind}&poses=${poses}`;
+  await page.goto(`${base}/?${flight}${extra}`);
   await within(60000, 'connecting', page.waitForFunction(
     () => window.relief && window.relief.connected && window.relief.deltas > 0,
     null, { polling: 100, timeout: 0 }));
   const connected_ms = Date.now() - started;
   const bytesAtStart = await page.evaluate(() => window.relief.bytes);
-  // The flight: `poses` poses at 10 Hz, then the answer to the last one, complete.
-  await within(poses * 100 + 90000, 'flying the path', page.waitForFunction(
+  // The flight: `poses` poses at 10 Hz (none when holding the start view), then the answer to
+  // the last one, complete.
+  const n = flight ? poses : 0;
+  await within(n * 100 + 90000, 'flying the path', page.waitForFunction(
     (n) => {
       const r = window.relief;
-      return r.pathSent >= n && r.answered >= r.poseSeq && r.complete;
+      return r.pathSent >= n && r.poseSeq > 0 && r.answered >= r.poseSeq && r.complete;
     },
-    poses, { polling: 100, timeout: 0 }));
+    n, { polling: 100, timeout: 0 }));
   const flown_ms = Date.now() - started;
   const bytesAtEnd = await page.evaluate(() => window.relief.bytes);
   const before = await page.evaluate(() => ({ frames: window.relief.frames, t: performance.now() }));

@@ -1,7 +1,8 @@
 // The page's WebAssembly (web/page/pkg/) against vectors a Rust test recorded from a real tile
 // session: builds the same hello, poses and acks, applies the recorded server messages in a
 // TileSession, and prints, per message, what it decoded: kind, digest, tiles removed, added
-// and evicted, and each added tile's geometry (counts, the sum of the positions' bit patterns and of the indices), for
+// and evicted, which added tiles morph in, and each added tile's geometry (counts, the sums of the
+// positions' and normals' bit patterns and of the indices), for
 // the Rust test to compare with relief-proto's own answers. Runs in Node.js, no browser.
 //
 //   node web/tests/wasm_codec.mjs VECTORS.json
@@ -32,14 +33,17 @@ for (const frame of v.frames) {
   entry.removed = Array.from(s.removed());
   entry.added = Array.from(s.added());
   entry.evicted = Array.from(s.evicted());
+  entry.split = Array.from(s.split_added());
+  // The sum of an array's f32 bit patterns: exact, and any bit off shows.
+  const bits = (a) => new Uint32Array(a.buffer, a.byteOffset, a.length).reduce((x, y) => x + y, 0);
   entry.geometry = entry.added.map((i) => {
     const g = s.geometry(i);
     const p = g.positions();
+    const n = g.normals();
     const ix = g.indices();
     const r = {
-      positions: p.length, indices: ix.length, mesh: g.mesh_triangles,
-      // The sum of the positions' f32 bit patterns: exact, and any bit off shows.
-      position_bits: new Uint32Array(p.buffer, p.byteOffset, p.length).reduce((a, x) => a + x, 0),
+      positions: p.length, normals: n.length, indices: ix.length, mesh: g.mesh_triangles,
+      position_bits: bits(p), normal_bits: bits(n),
       index_sum: ix.reduce((a, x) => a + x, 0),
     };
     g.free();

@@ -29,6 +29,7 @@
 pub mod body;
 pub mod cache;
 pub mod delta;
+pub mod draw;
 mod example;
 pub mod geometry;
 pub mod mirror;

@@ -53,7 +53,21 @@ export class TileGeometry {
         return ret >>> 0;
     }
     /**
-     * Vertex positions, `x, y, z` world metres each (x east, y north, z up).
+     * Smooth normals, four floats a vertex: `x, y` of the unit upward normal of the tile's own
+     * mesh, then of the morph target's (`z` follows, as they point up); `0, 0` on the
+     * vertices of patches and skirts alone.
+     * @returns {Float32Array}
+     */
+    normals() {
+        const ret = wasm.tilegeometry_normals(this.__wbg_ptr);
+        var v1 = getArrayF32FromWasm0(ret[0], ret[1]).slice();
+        wasm.__wbindgen_free(ret[0], ret[1] * 4, 4);
+        return v1;
+    }
+    /**
+     * Vertices, four floats each: `x, y, z` world metres (x east, y north, z up), then the
+     * morph target's `z` (the height on the parent's mesh; `z` itself where the vertex never
+     * moves).
      * @returns {Float32Array}
      */
     positions() {
@@ -360,6 +374,17 @@ export class TileSession {
      */
     set_view(width, height, tau) {
         wasm.tilesession_set_view(this.__wbg_ptr, width, height, tau);
+    }
+    /**
+     * The tiles among [`Self::added`] that replaced a coarser tile the same delta removed (an
+     * ancestor): they morph in from their parent's mesh. The others arrived by a merge.
+     * @returns {Uint32Array}
+     */
+    split_added() {
+        const ret = wasm.tilesession_split_added(this.__wbg_ptr);
+        var v1 = getArrayU32FromWasm0(ret[0], ret[1]).slice();
+        wasm.__wbindgen_free(ret[0], ret[1] * 4, 4);
+        return v1;
     }
     /**
      * Whether the session has been welcomed.

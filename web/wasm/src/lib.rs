@@ -5,8 +5,10 @@
 //! page's intentions into message bytes ([`TileSession::hello`], [`TileSession::pose`],
 //! [`TileSession::ack`]) and server messages into a [`TileMirror`] checked by digest
 //! ([`TileSession::receive`]), and hands each held tile's triangles to the page as typed arrays
-//! ([`TileSession::geometry`]): world positions and indices, mesh first, then its crack patches
-//! (or skirts), exactly what the wgpu client draws (`relief_proto::tile::geometry`).
+//! ([`TileSession::geometry`]): world positions with their morph targets, smooth normals and
+//! indices, mesh first, then its crack patches (or skirts), exactly what the wgpu client draws
+//! (`relief_proto::tile::draw::TileMesh`), and which added tiles morph in
+//! ([`TileSession::split_added`]).
 //!
 //! The session follows `docs/protocol.md` sections 4, 9, 10, 13 and 15: poses are numbered
 //! from 1 across reconnects, deltas must arrive in sequence and match their digest, a resumed
@@ -20,10 +22,10 @@ use relief_proto::msg::{
     TileStreamParams, Welcome, WireCamera, WireLens,
 };
 use relief_proto::path::{PathKind, camera_path};
+use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tile::TileSetInfo;
-use relief_proto::tile::geometry::tile_triangles;
+use relief_proto::tile::draw::{TileMesh, arrived_by_split};
 use relief_proto::tile::mirror::TileMirror;
-use relief_proto::tree::WorldFrame;
 use std::cell::RefCell;
 use wasm_bindgen::prelude::*;
 
@@ -35,8 +37,8 @@ struct Welcomed {
     info: TileSetInfo,
     /// The held tiles.
     mirror: TileMirror,
-    /// Grid to world metres.
-    frame: WorldFrame,
+    /// Grid to world metres, and the height quantum.
+    geom: TerrainGeometry,
 }
 
 /// A tile session's state, without the socket.
@@ -65,34 +67,41 @@ pub struct TileSession {
 /// A held tile's triangles in world metres.
 #[wasm_bindgen]
 pub struct TileGeometry {
-    positions: Vec<f32>,
-    indices: Vec<u32>,
-    mesh_triangles: u32,
+    mesh: TileMesh,
     level: u8,
 }
 
 #[wasm_bindgen]
 impl TileGeometry {
-    /// Vertex positions, `x, y, z` world metres each (x east, y north, z up).
+    /// Vertices, four floats each: `x, y, z` world metres (x east, y north, z up), then the
+    /// morph target's `z` (the height on the parent's mesh; `z` itself where the vertex never
+    /// moves).
     pub fn positions(&self) -> Vec<f32> {
-        self.positions.clone()
+        self.mesh.positions.clone()
+    }
+
+    /// Smooth normals, four floats a vertex: `x, y` of the unit upward normal of the tile's own
+    /// mesh, then of the morph target's (`z` follows, as they point up); `0, 0` on the
+    /// vertices of patches and skirts alone.
+    pub fn normals(&self) -> Vec<f32> {
+        self.mesh.normals.clone()
     }
 
     /// Triangle indices: the mesh's, then the crack patches' (or skirts'), three per triangle.
     pub fn indices(&self) -> Vec<u32> {
-        self.indices.clone()
+        self.mesh.indices.clone()
     }
 
     /// Triangles of the tile's own surface (the first `3 * mesh_triangles` indices).
     #[wasm_bindgen(getter)]
     pub fn mesh_triangles(&self) -> u32 {
-        self.mesh_triangles
+        self.mesh.counts[0]
     }
 
     /// Crack patch or skirt triangles (the indices after the mesh's).
     #[wasm_bindgen(getter)]
     pub fn extra_triangles(&self) -> u32 {
-        self.indices.len() as u32 / 3 - self.mesh_triangles
+        self.mesh.counts[1..].iter().sum()
     }
 
     /// The tile's level in the pyramid (0 is the root tile).
@@ -289,7 +298,7 @@ impl TileSession {
             .map_err(|e| JsError::new(&format!("bad terrain: {e}")))?;
         self.state = Some(Welcomed {
             mirror: TileMirror::new(shape, self.params),
-            frame: geom.frame,
+            geom,
             terrain: w.terrain,
             info,
         });
@@ -304,6 +313,20 @@ impl TileSession {
     /// Tiles the last delta started drawing.
     pub fn added(&self) -> Vec<u32> {
         self.added.clone()
+    }
+
+    /// The tiles among [`Self::added`] that replaced a coarser tile the same delta removed (an
+    /// ancestor): they morph in from their parent's mesh. The others arrived by a merge.
+    pub fn split_added(&self) -> Vec<u32> {
+        let Some(s) = self.state.as_ref() else {
+            return Vec::new();
+        };
+        let removed: std::collections::HashSet<u32> = self.removed.iter().copied().collect();
+        self.added
+            .iter()
+            .copied()
+            .filter(|&i| arrived_by_split(s.mirror.shape(), i, |p| removed.contains(&p)))
+            .collect()
     }
 
     /// Tiles the last delta dropped from the cache (their geometry is no longer needed).
@@ -331,15 +354,8 @@ impl TileSession {
         let tile = s.mirror.tile(index)?;
         let skirt =
             (self.params.crack == CrackMode::Skirts).then(|| s.info.skirt_height(tile.tile.level));
-        let t = tile_triangles(&s.frame, s.terrain.z_quantum, tile, skirt);
-        let mut indices = Vec::with_capacity(3 * (t.mesh.len() + t.patches.len() + t.skirts.len()));
-        for tri in t.mesh.iter().chain(&t.patches).chain(&t.skirts) {
-            indices.extend_from_slice(tri);
-        }
         Some(TileGeometry {
-            positions: t.positions.iter().flatten().copied().collect(),
-            indices,
-            mesh_triangles: t.mesh.len() as u32,
+            mesh: TileMesh::of(&s.geom, tile, skirt),
             level: tile.tile.level,
         })
     }
