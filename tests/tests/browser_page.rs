@@ -249,6 +249,61 @@ async fn the_page_draws_the_golden_view() {
     }
 }
 
+/// Touch: one finger dragged right turns the camera left (yaw falls), dragged up tilts it up
+/// (pitch rises), and two fingers held fly it forward; the page streams the new view with no
+/// desync.
+#[tokio::test(flavor = "multi_thread")]
+async fn the_page_turns_and_flies_by_touch() {
+    prerequisites();
+    let server = ChildServer::start(Path::new(BIN), free_addr(), &[]).await;
+    let url = format!("http://{}", server.addr);
+    let out = node_json("page_touch.mjs", &url, &[]).await;
+    let f = |pose: &str, key: &str| out[pose][key].as_f64().unwrap_or(f64::NAN);
+    let (yaw0, yaw1) = (f("start", "yaw"), f("turned", "yaw"));
+    let (pitch1, pitch2) = (f("turned", "pitch"), f("tilted", "pitch"));
+    let moved = [
+        f("flown", "x") - f("tilted", "x"),
+        f("flown", "y") - f("tilted", "y"),
+        f("flown", "z") - f("tilted", "z"),
+    ];
+    let (cy, sy) = (f("tilted", "yaw").cos(), f("tilted", "yaw").sin());
+    let (cp, sp) = (f("tilted", "pitch").cos(), f("tilted", "pitch").sin());
+    let ahead = moved[0] * cy * cp + moved[1] * sy * cp + moved[2] * sp;
+    let len = moved.iter().map(|d| d * d).sum::<f64>().sqrt();
+    println!(
+        "touch: yaw {yaw0:.3} -> {yaw1:.3}, pitch {pitch1:.3} -> {pitch2:.3}, {ahead:.0} m \
+         forward with two fingers; {} poses sent, {} deltas, {} desyncs",
+        out["relief"]["poses"], out["relief"]["deltas"], out["relief"]["desyncs"]
+    );
+    // The page turns 0.004 rad a pixel: 100 px right, 50 px up.
+    assert!(
+        (yaw1 - (yaw0 - 0.4)).abs() < 0.05,
+        "one finger right: yaw {yaw0} -> {yaw1}"
+    );
+    assert!(
+        (f("start", "pitch") - pitch1).abs() < 1e-6,
+        "a level drag tilted the camera"
+    );
+    assert!(
+        (pitch2 - (pitch1 + 0.2)).abs() < 0.05,
+        "one finger up: pitch {pitch1} -> {pitch2}"
+    );
+    assert!(
+        (f("flown", "yaw") - f("tilted", "yaw")).abs() < 1e-6,
+        "two fingers turned"
+    );
+    assert!(
+        ahead > 10.0 && ahead > 0.99 * len,
+        "two fingers held did not fly forward: moved {moved:?}"
+    );
+    assert_eq!(out["relief"]["desyncs"], 0, "{}", out["relief"]);
+    let (sent, before) = (out["relief"]["poses"].as_u64(), out["poses_start"].as_u64());
+    assert!(
+        sent.unwrap_or(0) > before.unwrap_or(u64::MAX).saturating_add(3),
+        "the gestures sent too few poses: {before:?} before, {sent:?} after"
+    );
+}
+
 #[tokio::test(flavor = "multi_thread")]
 async fn the_page_says_the_server_is_gone_and_resumes_when_it_is_back() {
     prerequisites();

@@ -250,6 +250,7 @@ function countTriangles() {
 // ---- Camera ----------------------------------------------------------------------------------
 
 const cam = { x: 0, y: 0, z: 0, yaw: 0, pitch: -0.3 };
+relief.camera = cam;
 let terrain = null;
 let path = null;
 let pathIndex = 0;

@@ -44,10 +44,10 @@ export function args() {
 
 /**
  * Chromium with a fresh profile and one page of `width` x `height`; every request of the
- * context (pages and their workers) goes into `requests`. `close()` ends it and removes the
- * profile.
+ * context (pages and their workers) goes into `requests`; `touch` gives it a touch screen.
+ * `close()` ends it and removes the profile.
  */
-export async function launch({ width = 960, height = 600 } = {}) {
+export async function launch({ width = 960, height = 600, touch = false } = {}) {
   if (!existsSync(CHROMIUM)) missing(`Chromium is not at ${CHROMIUM}.`);
   let chromium;
   try {
@@ -62,6 +62,7 @@ export async function launch({ width = 960, height = 600 } = {}) {
     args: FLAGS,
     viewport: { width, height },
     deviceScaleFactor: 1,
+    hasTouch: touch,
   });
   const requests = [];
   context.on('request', (r) => requests.push(r.url()));
