@@ -24,7 +24,7 @@ const SKY = '#9eb3cc';
 
 const relief = {
   frames: 0, deltas: 0, desyncs: 0, reconnects: 0, resumes: 0, welcomes: 0, bytes: 0,
-  poses: 0, tiles: 0, triangles: 0, fps: 0, bytesPerS: 0, latencyMs: null, tau: 0,
+  poses: 0, tiles: 0, nodes: 0, triangles: 0, fps: 0, bytesPerS: 0, latencyMs: null, tau: 0,
   connected: false, message: null, fatal: null, pathLength: 0, pathSent: 0, answered: 0,
   poseSeq: 0, complete: false, applyUs: { count: 0, total: 0, max: 0 },
   uploadUs: { count: 0, total: 0, max: 0 }, lastError: null,
@@ -46,6 +46,7 @@ function colour(hex, fallback) {
 const background = colour(query.get('background'), SKY);
 document.body.style.background = `rgb(${background.map((c) => Math.round(c * 255)).join(',')})`;
 const crack = ['patches', 'skirts', 'none'].includes(query.get('crack')) ? query.get('crack') : 'patches';
+const stream = query.get('stream') === 'vertex' ? 'vertex' : 'tiles';
 let tau = Number(query.get('tau') ?? tauInput.value);
 if (!(tau >= 0.5 && tau <= 100)) tau = 2;
 tauInput.value = String(tau);
@@ -76,6 +77,11 @@ if (!gl) {
 // (pos.z, nrm.xy) as alpha grows from 0 to 1 (the wgpu client's tiles.wgsl). Written as
 // a + (b - a) * alpha so that a vertex that never moves (a == b: the tile's boundary, patches,
 // skirts) stays bit for bit where its neighbours put it.
+// The vertex stream's record textures: texels a row (see web/wasm's take_node_rows and
+// take_cell_rows).
+const NODE_ROW_TEXELS = 768;
+const CELL_ROW_TEXELS = 4096;
+
 const VS = `#version 300 es
 layout(location = 0) in vec4 pos;
 layout(location = 1) in vec4 nrm;
@@ -156,6 +162,137 @@ gl.attachShader(program, compile(gl.FRAGMENT_SHADER, FS));
 gl.linkProgram(program);
 if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
 const uniform = (name) => gl.getUniformLocation(program, name);
+
+// The vertex stream: every cell record's two triangles, six corners of node slots, read from
+// a texture by gl_VertexID; each corner is a node record (three RGBA32UI texels: position and
+// parent slot, box min and static error, box max and split time) geomorphed here from its
+// ancestors' screen errors, the formula of relief_proto::mesh::morph and of the wgpu client's
+// terrain.wgsl (its `vs` path). Flat shading, as there.
+const VS_VERTEX = `#version 300 es
+precision highp float;
+precision highp int;
+precision highp usampler2D;
+uniform usampler2D nodes;
+uniform usampler2D cells;
+uniform mat4 viewProj;
+uniform vec3 eye;
+uniform float now;
+uniform vec4 forward;   // unit view direction, focal length (px)
+uniform vec4 planes[5]; // inward normals of the side and near planes, offsets
+uniform vec4 morph;     // tau, lambda, growth duration (s), off-axis bound
+uniform float near;
+out vec3 rel;
+out float height;
+out vec3 normal;
+const uint NONE = 0xffffffffu;
+struct Node { vec3 pos; uint parent; vec3 bmin; float err; vec3 bmax; float tsplit; };
+Node node(uint slot) {
+  int t = 3 * int(slot);
+  ivec2 at = ivec2(t % ${NODE_ROW_TEXELS}, t / ${NODE_ROW_TEXELS});
+  uvec4 a = texelFetch(nodes, at, 0);
+  uvec4 b = texelFetch(nodes, at + ivec2(1, 0), 0);
+  uvec4 c = texelFetch(nodes, at + ivec2(2, 0), 0);
+  return Node(uintBitsToFloat(a.xyz), a.w, uintBitsToFloat(b.xyz), uintBitsToFloat(b.w),
+    uintBitsToFloat(c.xyz), uintBitsToFloat(c.w));
+}
+float screenError(vec3 b0, vec3 b1, float err) {
+  if (err <= 0.0) return 0.0;
+  vec3 relMin = b0 - eye;
+  vec3 relMax = b1 - eye;
+  float margin = 3.0e38;
+  for (int i = 0; i < 5; i++) {
+    vec3 n = planes[i].xyz;
+    vec3 p = mix(relMin, relMax, step(0.0, n));
+    margin = min(margin, dot(n, p) - planes[i].w);
+  }
+  if (margin < 0.0) return 0.0;
+  vec3 f = forward.xyz;
+  vec3 nearCorner = mix(relMax, relMin, step(0.0, f));
+  vec3 far = max(abs(relMin), abs(relMax));
+  float depth = max(dot(f, nearCorner), near);
+  float rMax = sqrt(far.x * far.x + far.y * far.y);
+  return forward.w * err * min(rMax / depth, morph.w) / depth;
+}
+float alphaOf(Node p) {
+  float tau = morph.x;
+  float e = screenError(p.bmin, p.bmax, p.err);
+  float a = clamp((e - tau) / ((morph.y - 1.0) * tau), 0.0, 1.0);
+  if (morph.z > 0.0) a = min(a, clamp((now - p.tsplit) / morph.z, 0.0, 1.0));
+  return a;
+}
+void main() {
+  uint slot = texelFetch(cells, ivec2(gl_VertexID % ${CELL_ROW_TEXELS}, gl_VertexID / ${CELL_ROW_TEXELS}), 0).r;
+  normal = vec3(0.0);
+  if (slot == NONE) {
+    // A missing triangle: all three corners land outside the clip volume.
+    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+    rel = vec3(0.0);
+    height = 0.0;
+    return;
+  }
+  // D(n) = D(p) + alpha(p) (P(n) - D(p)), walked upwards from the node, stopping at the first
+  // ancestor whose alpha is 1.
+  uint cur = slot;
+  vec3 p = vec3(0.0);
+  float w = 1.0;
+  for (int k = 0; k < 64; k++) {
+    Node n = node(cur);
+    if (n.parent == NONE) {
+      p += w * n.pos;
+      break;
+    }
+    float a = alphaOf(node(n.parent));
+    p += (w * a) * n.pos;
+    w *= 1.0 - a;
+    if (w <= 0.0) break;
+    cur = n.parent;
+  }
+  rel = p - eye;
+  height = p.z;
+  gl_Position = viewProj * vec4(rel, 1.0);
+}`;
+const vertexProgram = gl.createProgram();
+gl.attachShader(vertexProgram, compile(gl.VERTEX_SHADER, VS_VERTEX));
+gl.attachShader(vertexProgram, compile(gl.FRAGMENT_SHADER, FS));
+gl.linkProgram(vertexProgram);
+if (!gl.getProgramParameter(vertexProgram, gl.LINK_STATUS)) {
+  throw new Error(gl.getProgramInfoLog(vertexProgram));
+}
+const V = Object.fromEntries(['nodes', 'cells', 'viewProj', 'eye', 'now', 'forward', 'planes', 'morph',
+  'near', 'light', 'haze', 'fogDistance', 'extra', 'wire', 'lines']
+  .map((n) => [n, gl.getUniformLocation(vertexProgram, n)]));
+const emptyVao = gl.createVertexArray();
+/** The vertex stream's record textures: nodes (RGBA32UI) and cells (R32UI). */
+const records = {
+  nodes: { texture: null, rows: 0, width: NODE_ROW_TEXELS, format: [gl.RGBA32UI, gl.RGBA_INTEGER], words: 4 },
+  cells: { texture: null, rows: 0, width: CELL_ROW_TEXELS, format: [gl.R32UI, gl.RED_INTEGER], words: 1 },
+};
+
+/** Uploads the rows `take_*_rows` handed out: `[rows, then per run: first, count, words]`. */
+function uploadRows(r, update) {
+  if (update.length === 0) return;
+  const rows = update[0];
+  const [internal, format] = r.format;
+  if (r.texture === null || rows !== r.rows) {
+    if (r.texture) gl.deleteTexture(r.texture);
+    r.texture = gl.createTexture();
+    gl.bindTexture(gl.TEXTURE_2D, r.texture);
+    gl.texStorage2D(gl.TEXTURE_2D, 1, internal, r.width, Math.max(1, rows));
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+    gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+    r.rows = rows;
+  }
+  gl.bindTexture(gl.TEXTURE_2D, r.texture);
+  const rowWords = r.width * r.words;
+  for (let i = 1; i < update.length;) {
+    const [first, count] = [update[i], update[i + 1]];
+    const words = update.subarray(i + 2, i + 2 + count * rowWords);
+    gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, first, r.width, count, format, gl.UNSIGNED_INT, words);
+    i += 2 + count * rowWords;
+  }
+  gl.bindTexture(gl.TEXTURE_2D, null);
+}
+
 const U = {
   viewProj: uniform('viewProj'), eye: uniform('eye'), light: uniform('light'), haze: uniform('haze'),
   fogDistance: uniform('fogDistance'), extra: uniform('extra'), wire: uniform('wire'),
@@ -235,7 +372,19 @@ function lineBuffer(t) {
   return t.lines;
 }
 
+/** Vertex stream: the record rows the last message changed, into their textures. */
+function uploadRecords() {
+  if (stream !== 'vertex') return;
+  uploadRows(records.nodes, session.take_node_rows());
+  uploadRows(records.cells, session.take_cell_rows());
+}
+
 function countTriangles() {
+  if (stream === 'vertex') {
+    relief.triangles = session ? session.fan_triangles : 0;
+    relief.nodes = session ? session.active_nodes : 0;
+    return;
+  }
   let n = 0;
   let active = 0;
   for (const t of tiles.values()) {
@@ -354,7 +503,7 @@ function connect() {
     let kind;
     const t0 = performance.now();
     try {
-      kind = session.receive(new Uint8Array(ev.data));
+      kind = session.receive(new Uint8Array(ev.data), performance.now() / 1000);
     } catch (e) {
       // A desync (or a message this page cannot read): start again from scratch.
       relief.desyncs += 1;
@@ -382,6 +531,7 @@ function connect() {
           else drop(i);
         }
       }
+      uploadRecords();
       countTriangles();
       sendPose(true);
     } else if (kind === 'delta') {
@@ -404,6 +554,7 @@ function connect() {
           t.arrived = split.has(i) ? arrival : SETTLED;
         }
       }
+      uploadRecords();
       const up = (performance.now() - t1) * 1000;
       relief.uploadUs.count += 1;
       relief.uploadUs.total += up;
@@ -524,6 +675,89 @@ function morphAlpha(t, seconds) {
   return GROWTH_S > 0 ? Math.min(1, Math.max(0, (seconds - t.arrived) / GROWTH_S)) : 1;
 }
 
+/** The tile stream: each active tile's mesh, then its patches or skirts. */
+function drawTiles(now, far) {
+  const [ex, ey] = terrain.extent_m;
+  gl.useProgram(program);
+  gl.enable(gl.DEPTH_TEST);
+  gl.depthFunc(gl.LEQUAL);
+  // Patches and skirts are vertical: no back-face culling.
+  gl.disable(gl.CULL_FACE);
+  gl.uniformMatrix4fv(U.viewProj, false, viewProj(canvas.width / canvas.height, far));
+  gl.uniform3f(U.eye, cam.x, cam.y, cam.z);
+  gl.uniform3fv(U.light, SUN);
+  gl.uniform3fv(U.haze, HAZE);
+  gl.uniform1f(U.fogDistance, Math.max(ex, ey));
+  const wire = wireInput.checked;
+  if (wire) {
+    gl.enable(gl.POLYGON_OFFSET_FILL);
+    gl.polygonOffset(1, 1);
+  }
+  gl.uniform1i(U.lines, 0);
+  gl.uniform1f(U.wire, wire ? 1 : 0);
+  const seconds = now / 1000;
+  for (const t of tiles.values()) {
+    if (!t.active) continue;
+    gl.bindVertexArray(t.vao);
+    gl.uniform1f(U.alpha, morphAlpha(t, seconds));
+    gl.uniform1f(U.extra, 0);
+    gl.drawElements(gl.TRIANGLES, 3 * t.mesh, gl.UNSIGNED_INT, 0);
+    if (t.extra > 0) {
+      gl.uniform1f(U.extra, 1);
+      gl.drawElements(gl.TRIANGLES, 3 * t.extra, gl.UNSIGNED_INT, 12 * t.mesh);
+    }
+  }
+  if (wire) {
+    gl.disable(gl.POLYGON_OFFSET_FILL);
+    gl.uniform1i(U.lines, 1);
+    for (const t of tiles.values()) {
+      if (!t.active) continue;
+      const lines = lineBuffer(t);
+      gl.bindVertexArray(t.vao);
+      gl.uniform1f(U.alpha, morphAlpha(t, seconds));
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, lines.buffer);
+      gl.drawElements(gl.LINES, lines.count, gl.UNSIGNED_INT, 0);
+      gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, t.ibo);
+    }
+  }
+  gl.bindVertexArray(null);
+}
+
+/** The vertex stream: every cell's two triangles, geomorphed in the vertex shader. */
+function drawVertexStream(now, far) {
+  const cells = session ? session.cell_count : 0;
+  if (cells === 0 || !records.nodes.texture || !records.cells.texture) return;
+  const [ex, ey] = terrain.extent_m;
+  gl.useProgram(vertexProgram);
+  gl.enable(gl.DEPTH_TEST);
+  gl.depthFunc(gl.LEQUAL);
+  gl.disable(gl.CULL_FACE);
+  gl.activeTexture(gl.TEXTURE0);
+  gl.bindTexture(gl.TEXTURE_2D, records.nodes.texture);
+  gl.uniform1i(V.nodes, 0);
+  gl.activeTexture(gl.TEXTURE1);
+  gl.bindTexture(gl.TEXTURE_2D, records.cells.texture);
+  gl.uniform1i(V.cells, 1);
+  gl.uniformMatrix4fv(V.viewProj, false, viewProj(canvas.width / canvas.height, far));
+  gl.uniform3f(V.eye, cam.x, cam.y, cam.z);
+  gl.uniform1f(V.now, now / 1000);
+  const m = session.morph_block(cam.x, cam.y, cam.z, cam.yaw, cam.pitch);
+  gl.uniform4fv(V.forward, m.subarray(0, 4));
+  gl.uniform4fv(V.planes, m.subarray(4, 24));
+  gl.uniform4fv(V.morph, m.subarray(24, 28));
+  gl.uniform1f(V.near, m[28]);
+  gl.uniform3fv(V.light, SUN);
+  gl.uniform3fv(V.haze, HAZE);
+  gl.uniform1f(V.fogDistance, Math.max(ex, ey));
+  gl.uniform1f(V.extra, 0);
+  gl.uniform1f(V.wire, 0);
+  gl.uniform1i(V.lines, 0);
+  gl.bindVertexArray(emptyVao);
+  gl.drawArrays(gl.TRIANGLES, 0, 6 * cells);
+  gl.bindVertexArray(null);
+  gl.activeTexture(gl.TEXTURE0);
+}
+
 function frame(now) {
   const dt = Math.min(0.1, (now - lastFrame) / 1000);
   lastFrame = now;
@@ -536,49 +770,11 @@ function frame(now) {
   if (terrain) {
     const [ex, ey] = terrain.extent_m;
     const far = 4 * Math.max(ex, ey) + Math.max(0, cam.z - terrain.height_range_m[0]) * 4;
-    gl.useProgram(program);
-    gl.enable(gl.DEPTH_TEST);
-    gl.depthFunc(gl.LEQUAL);
-    // Patches and skirts are vertical: no back-face culling.
-    gl.disable(gl.CULL_FACE);
-    gl.uniformMatrix4fv(U.viewProj, false, viewProj(canvas.width / canvas.height, far));
-    gl.uniform3f(U.eye, cam.x, cam.y, cam.z);
-    gl.uniform3fv(U.light, SUN);
-    gl.uniform3fv(U.haze, HAZE);
-    gl.uniform1f(U.fogDistance, Math.max(ex, ey));
-    const wire = wireInput.checked;
-    if (wire) {
-      gl.enable(gl.POLYGON_OFFSET_FILL);
-      gl.polygonOffset(1, 1);
+    if (stream === 'vertex') {
+      drawVertexStream(now, far);
+    } else {
+      drawTiles(now, far);
     }
-    gl.uniform1i(U.lines, 0);
-    gl.uniform1f(U.wire, wire ? 1 : 0);
-    const seconds = now / 1000;
-    for (const t of tiles.values()) {
-      if (!t.active) continue;
-      gl.bindVertexArray(t.vao);
-      gl.uniform1f(U.alpha, morphAlpha(t, seconds));
-      gl.uniform1f(U.extra, 0);
-      gl.drawElements(gl.TRIANGLES, 3 * t.mesh, gl.UNSIGNED_INT, 0);
-      if (t.extra > 0) {
-        gl.uniform1f(U.extra, 1);
-        gl.drawElements(gl.TRIANGLES, 3 * t.extra, gl.UNSIGNED_INT, 12 * t.mesh);
-      }
-    }
-    if (wire) {
-      gl.disable(gl.POLYGON_OFFSET_FILL);
-      gl.uniform1i(U.lines, 1);
-      for (const t of tiles.values()) {
-        if (!t.active) continue;
-        const lines = lineBuffer(t);
-        gl.bindVertexArray(t.vao);
-        gl.uniform1f(U.alpha, morphAlpha(t, seconds));
-        gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, lines.buffer);
-        gl.drawElements(gl.LINES, lines.count, gl.UNSIGNED_INT, 0);
-        gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, t.ibo);
-      }
-    }
-    gl.bindVertexArray(null);
   }
   relief.frames += 1;
   fpsFrames += 1;
@@ -599,7 +795,9 @@ function hud(now) {
   const apply = relief.applyUs.count ? (relief.applyUs.total / relief.applyUs.count).toFixed(0) : '-';
   statsEl.textContent =
     `${relief.fps.toFixed(1)} fps   ${relief.triangles.toLocaleString('en')} triangles\n` +
-    `${relief.tiles} tiles (${session ? session.held : 0} held)   ${kb} KiB/s\n` +
+    (stream === 'vertex'
+      ? `${relief.nodes.toLocaleString('en')} nodes (vertex stream)   ${kb} KiB/s\n`
+      : `${relief.tiles} tiles (${session ? session.held : 0} held)   ${kb} KiB/s\n`) +
     `tau ${tau} px   latency ${lat}   apply ${apply} us\n` +
     `deltas ${relief.deltas}   desyncs ${relief.desyncs}   resumes ${relief.resumes}` +
     (relief.connected ? '' : '   (offline)');
@@ -653,7 +851,7 @@ async function start() {
   }
   resize();
   const [w, h] = lens();
-  session = new TileSession(w, h, FOV_Y_DEG, NEAR, tau, crack, 1024);
+  session = new TileSession(w, h, FOV_Y_DEG, NEAR, tau, stream, crack, 1024);
   connect();
   setInterval(tick, 1000 / POSE_HZ);
   requestAnimationFrame(frame);

@@ -22,7 +22,7 @@ try {
   const extra = options.query ? `&${options.query}` : '';
   await page.goto(`${base}/?path=standard&poses=${poses}&hud=0${extra}`);
   await within(60000, 'connecting', page.waitForFunction(
-    () => window.relief && window.relief.connected && window.relief.tiles > 0,
+    () => window.relief && window.relief.connected && window.relief.triangles > 0,
     null, { polling: 100, timeout: 0 }));
   const shots = [];
   const deadline = Date.now() + poses * 100 + 90000;

@@ -17,13 +17,13 @@ await wasm.default({ module_or_path: readFileSync(join(pkg, 'relief_wasm_bg.wasm
 
 const v = JSON.parse(readFileSync(process.argv[2], 'utf8'));
 const hex = (bytes) => Buffer.from(bytes).toString('hex');
-const s = new wasm.TileSession(v.lens[0], v.lens[1], v.lens[2], v.lens[3], v.tau, v.crack, v.cache);
+const s = new wasm.TileSession(v.lens[0], v.lens[1], v.lens[2], v.lens[3], v.tau, 'tiles', v.crack, v.cache);
 const out = { ok: true, hello: hex(s.hello()), poses: [], acks: [], messages: [] };
 for (const p of v.poses) out.poses.push(hex(s.pose(...p)));
 for (const frame of v.frames) {
   const entry = {};
   try {
-    entry.kind = s.receive(Buffer.from(frame, 'hex'));
+    entry.kind = s.receive(Buffer.from(frame, 'hex'), 0);
   } catch (e) {
     entry.error = String(e.message ?? e);
     out.messages.push(entry);

@@ -1,8 +1,8 @@
 //! A [`Scene`] that follows a [`Session`]: each call applies the splits and merges the session
 //! applied since the last one, or rebuilds when the session started again from the root.
 
-use super::scene::Scene;
 use crate::session::Session;
+use relief_proto::mesh::scene::Scene;
 
 /// A scene and the session generation it reflects.
 pub struct Follower {

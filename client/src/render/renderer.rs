@@ -12,8 +12,8 @@ use super::frame::{FrameParams, MorphStage, frame_block};
 use super::gpu::{Gpu, RenderError};
 use super::offscreen::read_buffer;
 use super::pass::{self, Depth};
-use super::scene::{CELL_WORDS, Pool, Scene};
 use glam::Vec3;
+use relief_proto::mesh::scene::{CELL_WORDS, Pool, Scene};
 use wgpu::util::DeviceExt;
 
 /// GPU buffers, pipelines and bind groups for one scene.

@@ -13,11 +13,13 @@
 //! - [`fans`]: the output-sensitive incremental builder the client uses.
 //! - [`check`]: crack, fold and manifold checks of a triangle list.
 //! - [`morph`]: where each active node is drawn: the geomorph down the chain of ancestors.
+//! - [`scene`]: the node and triangle records a GPU draws the fans and the geomorph from.
 
 pub mod check;
 pub mod fans;
 pub mod morph;
 pub mod oracle;
+pub mod scene;
 
 pub use check::{MeshReport, check_mesh};
 pub use fans::FanMesh;

@@ -114,6 +114,14 @@ export class TileSession {
         return v1;
     }
     /**
+     * Vertex stream: active nodes of the cut.
+     * @returns {number}
+     */
+    get active_nodes() {
+        const ret = wasm.tilesession_active_nodes(this.__wbg_ptr);
+        return ret;
+    }
+    /**
      * Tiles the last delta started drawing.
      * @returns {Uint32Array}
      */
@@ -140,6 +148,14 @@ export class TileSession {
         return ret;
     }
     /**
+     * Vertex stream: cell records to draw (each two triangles, six corners, of node slots).
+     * @returns {number}
+     */
+    get cell_count() {
+        const ret = wasm.tilesession_cell_count(this.__wbg_ptr);
+        return ret >>> 0;
+    }
+    /**
      * Whether the newest delta met tau for its pose.
      * @returns {boolean}
      */
@@ -148,7 +164,7 @@ export class TileSession {
         return ret !== 0;
     }
     /**
-     * Digest of the active tiles, 16 hex digits.
+     * Digest of the active tiles or the cut, 16 hex digits.
      * @returns {string}
      */
     get digest() {
@@ -174,6 +190,14 @@ export class TileSession {
         return v1;
     }
     /**
+     * Vertex stream: the triangles of the fans.
+     * @returns {number}
+     */
+    get fan_triangles() {
+        const ret = wasm.tilesession_fan_triangles(this.__wbg_ptr);
+        return ret >>> 0;
+    }
+    /**
      * The triangles of held tile `index`, mesh then patches or skirts; `undefined` for a tile
      * not held.
      * @param {number} index
@@ -194,7 +218,7 @@ export class TileSession {
         return v1;
     }
     /**
-     * Tiles held, active and cached.
+     * Tiles held, active and cached; on the vertex stream, the nodes held.
      * @returns {number}
      */
     get held() {
@@ -202,8 +226,8 @@ export class TileSession {
         return ret >>> 0;
     }
     /**
-     * The hello for a new connection: a resume from the mirror's active tiles when it holds
-     * any, else a new session.
+     * The hello for a new connection: a resume from the mirror (the active tiles when it holds
+     * any, the cut), else a new session.
      * @returns {Uint8Array}
      */
     hello() {
@@ -229,27 +253,58 @@ export class TileSession {
         return ret >>> 0;
     }
     /**
+     * Vertex stream: what the vertex shader's geomorph needs of the view from eye `x, y, z`
+     * looking along `yaw`, `pitch` (radians) through this session's lens, 32 floats: the unit
+     * view direction and the focal length in pixels; the inward normals of the four side
+     * planes and the near plane, each with its offset; tau, lambda, the growth duration in
+     * seconds and the off-axis bound; the near distance and three zeros. The same
+     * `relief_proto::view::ViewState` as the server's and the wgpu client's (`frame.rs`).
+     * @param {number} x
+     * @param {number} y
+     * @param {number} z
+     * @param {number} yaw
+     * @param {number} pitch
+     * @returns {Float32Array}
+     */
+    morph_block(x, y, z, yaw, pitch) {
+        const ret = wasm.tilesession_morph_block(this.__wbg_ptr, x, y, z, yaw, pitch);
+        var v1 = getArrayF32FromWasm0(ret[0], ret[1]).slice();
+        wasm.__wbindgen_free(ret[0], ret[1] * 4, 4);
+        return v1;
+    }
+    /**
      * A session for a `width` x `height` pixel viewport with a vertical field of view of
-     * `fov_y_deg` degrees and a near plane `near` metres away, screen error `tau` pixels,
-     * `crack` one of `patches`, `skirts`, `none`, keeping at most `cache_tiles` tiles.
+     * `fov_y_deg` degrees and a near plane `near` metres away, screen error `tau` pixels, on
+     * `stream` `tiles` (then `crack` is one of `patches`, `skirts`, `none`, and at most
+     * `cache_tiles` tiles are kept) or `vertex`.
      * @param {number} width
      * @param {number} height
      * @param {number} fov_y_deg
      * @param {number} near
      * @param {number} tau
+     * @param {string} stream
      * @param {string} crack
      * @param {number} cache_tiles
      */
-    constructor(width, height, fov_y_deg, near, tau, crack, cache_tiles) {
-        const val2 = +width;
-        const val3 = +height;
-        const val4 = +fov_y_deg;
-        const val5 = +near;
-        const val6 = +tau;
-        const val7 = +cache_tiles;
-        const ptr0 = passStringToWasm0(crack, wasm.__wbindgen_malloc, wasm.__wbindgen_realloc);
-        const len0 = WASM_VECTOR_LEN;
-        const ret = wasm.tilesession_new(val2, val3, val4, val5, val6, ptr0, len0, val7);
+    constructor(width, height, fov_y_deg, near, tau, stream, crack, cache_tiles) {
+        const val3 = +width;
+        const val4 = +height;
+        const val5 = +fov_y_deg;
+        const val6 = +near;
+        const val7 = +tau;
+        const val8 = +cache_tiles;
+        let ptr0, len0, ptr1, len1;
+        try {
+            ptr0 = passStringToWasm0(stream, wasm.__wbindgen_malloc, wasm.__wbindgen_realloc);
+            len0 = WASM_VECTOR_LEN;
+            ptr1 = passStringToWasm0(crack, wasm.__wbindgen_malloc, wasm.__wbindgen_realloc);
+            len1 = WASM_VECTOR_LEN;
+        } catch (e) {
+            if (ptr1) { wasm.__wbindgen_free(ptr1, len1 * 1, 1); }
+            if (ptr0) { wasm.__wbindgen_free(ptr0, len0 * 1, 1); }
+            throw e;
+        }
+        const ret = wasm.tilesession_new(val3, val4, val5, val6, val7, ptr0, len0, ptr1, len1, val8);
         if (ret[2]) {
             throw takeFromExternrefTable0(ret[1]);
         }
@@ -281,32 +336,36 @@ export class TileSession {
         return ret;
     }
     /**
-     * Decodes and applies one server message. Returns `welcome` (a new session: drop every
-     * tile drawn), `resumed` (the active tiles stay; cached ones are gone), `delta` (see
-     * [`Self::removed`], [`Self::added`], [`Self::evicted`]) or `reconnect` (close, wait
-     * [`Self::reconnect_after_ms`], reconnect). An error is a desync or a protocol fault:
-     * close, [`Self::reset`] and reconnect.
+     * Decodes and applies one server message at `now` (seconds on the page's drawing clock:
+     * the split time of the vertex stream's geomorph). Returns `welcome` (a new session: drop
+     * everything drawn), `resumed` (the active tiles or the cut stay; cached tiles are gone),
+     * `delta` (see [`Self::removed`], [`Self::added`], [`Self::evicted`], or the vertex
+     * stream's record rows) or `reconnect` (close, wait [`Self::reconnect_after_ms`],
+     * reconnect). An error is a desync or a protocol fault: close, [`Self::reset`] and
+     * reconnect.
      * @param {Uint8Array | number[]} bytes
+     * @param {number} now
      * @returns {string}
      */
-    receive(bytes) {
-        let deferred3_0;
-        let deferred3_1;
+    receive(bytes, now) {
+        let deferred4_0;
+        let deferred4_1;
         try {
+            const val2 = +now;
             const ptr0 = passArray8ToWasm0(bytes, wasm.__wbindgen_malloc);
             const len0 = WASM_VECTOR_LEN;
-            const ret = wasm.tilesession_receive(this.__wbg_ptr, ptr0, len0);
-            var ptr2 = ret[0];
-            var len2 = ret[1];
+            const ret = wasm.tilesession_receive(this.__wbg_ptr, ptr0, len0, val2);
+            var ptr3 = ret[0];
+            var len3 = ret[1];
             if (ret[3]) {
-                ptr2 = 0; len2 = 0;
+                ptr3 = 0; len3 = 0;
                 throw takeFromExternrefTable0(ret[2]);
             }
-            deferred3_0 = ptr2;
-            deferred3_1 = len2;
-            return getStringFromWasm0(ptr2, len2);
+            deferred4_0 = ptr3;
+            deferred4_1 = len3;
+            return getStringFromWasm0(ptr3, len3);
         } finally {
-            wasm.__wbindgen_free(deferred3_0, deferred3_1, 1);
+            wasm.__wbindgen_free(deferred4_0, deferred4_1, 1);
         }
     }
     /**
@@ -343,7 +402,8 @@ export class TileSession {
         return ret !== 0;
     }
     /**
-     * Tiles of the last delta that came with a body (the others came from the cache).
+     * Tiles of the last delta that came with a body (the others came from the cache); on the
+     * vertex stream, the delta's splits and merges.
      * @returns {number}
      */
     get sent() {
@@ -382,6 +442,31 @@ export class TileSession {
      */
     split_added() {
         const ret = wasm.tilesession_split_added(this.__wbg_ptr);
+        var v1 = getArrayU32FromWasm0(ret[0], ret[1]).slice();
+        wasm.__wbindgen_free(ret[0], ret[1] * 4, 4);
+        return v1;
+    }
+    /**
+     * Vertex stream: the cell records' rows that changed since the last call, for an R32UI
+     * texture of 4096 texels a row (a node slot each, six a cell; `u32::MAX` for a missing
+     * triangle), laid out as [`Self::take_node_rows`].
+     * @returns {Uint32Array}
+     */
+    take_cell_rows() {
+        const ret = wasm.tilesession_take_cell_rows(this.__wbg_ptr);
+        var v1 = getArrayU32FromWasm0(ret[0], ret[1]).slice();
+        wasm.__wbindgen_free(ret[0], ret[1] * 4, 4);
+        return v1;
+    }
+    /**
+     * Vertex stream: the node records' rows that changed since the last call, for an RGBA32UI
+     * texture of 768 texels a row (256 records of 12 words, see
+     * `relief_proto::mesh::scene::NODE_WORDS`): `[rows in all, then per run: first row, row
+     * count, the rows' words]`. All rows after a welcome or when the pool grew.
+     * @returns {Uint32Array}
+     */
+    take_node_rows() {
+        const ret = wasm.tilesession_take_node_rows(this.__wbg_ptr);
         var v1 = getArrayU32FromWasm0(ret[0], ret[1]).slice();
         wasm.__wbindgen_free(ret[0], ret[1] * 4, 4);
         return v1;

@@ -1,10 +1,12 @@
 //! The CPU side of the GPU buffers: node and triangle records in slot pools, kept in step with
 //! the mirror and its fan mesh one split or merge at a time, with the pages that changed marked
-//! for upload. No wgpu here, so it is unit-tested without a GPU.
+//! for upload. No GPU API here: the wgpu client (`client/src/render/renderer.rs`) and the browser
+//! page's WebAssembly (`web/wasm/`) both upload these records, and it is unit-tested without a
+//! GPU.
 //!
 //! **Nodes.** Every node the mirror holds (active and interior) owns a slot in the node pool
 //! while it is held. Its record, [`NODE_WORDS`] 32-bit words, carries what the geomorph needs
-//! (paper 000, section 3.6; [`relief_proto::mesh::morph`]): its position at rest, its parent's
+//! (paper 000, section 3.6; [`crate::mesh::morph`]): its position at rest, its parent's
 //! slot, the box and static error its screen error is computed from, and when its split was
 //! applied. A split allocates the children's slots; a merge frees them.
 //!
@@ -15,12 +17,11 @@
 //! **Upload.** Pools only grow (doubling). Writes mark fixed-size pages dirty; the renderer
 //! uploads runs of dirty pages, never the whole mesh per delta.
 
-use crate::session::Change;
-use relief_proto::haar::error_value;
-use relief_proto::mesh::FanMesh;
-use relief_proto::mirror::Mirror;
-use relief_proto::terrain::TerrainGeometry;
-use relief_proto::tree::NodeId;
+use crate::haar::error_value;
+use crate::mesh::FanMesh;
+use crate::mirror::{Change, Mirror};
+use crate::terrain::TerrainGeometry;
+use crate::tree::NodeId;
 use rustc_hash::FxHashMap;
 
 /// "No slot": the root's parent, a missing triangle, a free record.

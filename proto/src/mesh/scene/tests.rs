@@ -1,10 +1,10 @@
 use super::*;
-use relief_proto::cut::Cut;
-use relief_proto::delta::{Delta, Split};
-use relief_proto::mesh::Tri;
+use crate::cut::Cut;
+use crate::delta::{Delta, Split};
+use crate::mesh::Tri;
 use std::collections::BTreeSet;
 
-use relief_proto::rng::Rng;
+use crate::rng::Rng;
 
 /// A random delta from `shadow`'s cut: a few merges of nodes whose children are all active, or
 /// a few splits of active nodes; `shadow` is moved to the cut after it.
