@@ -1,0 +1,175 @@
+//! Crack curtains for adaptive tiles (issue 13, `rqt+patches`; work in progress): paper 001's
+//! patches generalised to tiles whose border vertices differ from their neighbours'.
+//!
+//! Along one side of a tile, in the vertical plane of that side, the tile's border is a polyline
+//! `own`; each neighbour the selection may put across it (the same level, one coarser, the finer
+//! ones) has its own polyline over part of the side. A crack is where they differ. Each tile
+//! hangs a *curtain* below its own polyline, down to the lower envelope of every polyline that
+//! can meet it there: then wherever two neighbours' borders differ, the higher one's curtain
+//! reaches the lower one, and no crack shows whatever the selection, as with paper 001's patches
+//! (which this is, when the polylines nest as a grid's do).
+//!
+//! **Bottom.** At every breakpoint `x` of any polyline inside the side (and the side's ends),
+//! `b(x) = floor(min over polylines covering x of p(x))`. Between two breakpoints every polyline
+//! is linear, so `b` (linear there too) lies at or below all of them: the curtain reaches every
+//! neighbour. Positions are whole samples, heights whole quanta.
+//!
+//! **Triangles.** For each own segment `a-c`, the polygon `a, c, b(x_m), ..., b(x_0)` over the
+//! breakpoints `x_0 = a < ... < x_m = c` is fanned from `a`. A fan triangle may reach below the
+//! bottom where the bottom is not convex; it stays below `own`, in the side's plane, where the
+//! terrain across hides it as it hides a skirt. A segment whose bottom equals it everywhere has
+//! no curtain.
+
+/// A border polyline along a side: positions along the side (samples, increasing) and heights
+/// (z quanta).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Polyline {
+    /// Positions, increasing.
+    pub pos: Vec<u32>,
+    /// Heights, one per position.
+    pub z: Vec<i32>,
+}
+
+impl Polyline {
+    /// The height at `x`, when `x` lies within the polyline's range.
+    pub fn at(&self, x: u32) -> Option<f64> {
+        let (first, last) = (*self.pos.first()?, *self.pos.last()?);
+        if x < first || x > last {
+            return None;
+        }
+        let k = self.pos.partition_point(|&p| p <= x);
+        if k == self.pos.len() {
+            return Some(f64::from(self.z[k - 1]));
+        }
+        let (p0, p1) = (f64::from(self.pos[k - 1]), f64::from(self.pos[k]));
+        let (z0, z1) = (f64::from(self.z[k - 1]), f64::from(self.z[k]));
+        Some(z0 + (z1 - z0) * (f64::from(x) - p0) / (p1 - p0))
+    }
+}
+
+/// A curtain vertex: one of the tile's own border vertices (by its index along `own`) or a
+/// bottom point (position along the side, height).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CurtainVertex {
+    /// `own.pos[i]`.
+    Own(usize),
+    /// A point below the border.
+    Bottom(u32, i32),
+}
+
+/// The curtain under `own` against `others` (see the module docs): triangles of own and bottom
+/// vertices.
+pub fn curtain(own: &Polyline, others: &[Polyline]) -> Vec<[CurtainVertex; 3]> {
+    let mut out = Vec::new();
+    for s in 0..own.pos.len().saturating_sub(1) {
+        let (a, c) = (own.pos[s], own.pos[s + 1]);
+        let mut xs: Vec<u32> = others
+            .iter()
+            .flat_map(|o| o.pos.iter().copied())
+            .filter(|&x| x > a && x < c)
+            .chain([a, c])
+            .collect();
+        xs.sort_unstable();
+        xs.dedup();
+        let bottom: Vec<(u32, i32)> = xs
+            .iter()
+            .map(|&x| {
+                let low = others
+                    .iter()
+                    .filter_map(|o| o.at(x))
+                    .chain(own.at(x))
+                    .fold(f64::INFINITY, f64::min);
+                (x, low.floor() as i32)
+            })
+            .collect();
+        let top = |x: u32| own.at(x).unwrap_or(f64::NEG_INFINITY);
+        if bottom.iter().all(|&(x, z)| f64::from(z) >= top(x)) {
+            continue;
+        }
+        // The fan from `a` (see the module docs), without degenerate triangles.
+        let pa = (f64::from(a), f64::from(own.z[s]));
+        let v: Vec<CurtainVertex> = bottom
+            .iter()
+            .map(|&(x, z)| CurtainVertex::Bottom(x, z))
+            .chain([CurtainVertex::Own(s + 1)])
+            .collect();
+        for w in v.windows(2) {
+            let [p, q] = [w[0], w[1]].map(|v| match v {
+                CurtainVertex::Own(i) => (f64::from(own.pos[i]), f64::from(own.z[i])),
+                CurtainVertex::Bottom(x, z) => (f64::from(x), f64::from(z)),
+            });
+            let area = (p.0 - pa.0) * (q.1 - pa.1) - (p.1 - pa.1) * (q.0 - pa.0);
+            if area != 0.0 {
+                out.push([CurtainVertex::Own(s), w[0], w[1]]);
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn point(own: &Polyline, v: CurtainVertex) -> (f64, f64) {
+        match v {
+            CurtainVertex::Own(i) => (f64::from(own.pos[i]), f64::from(own.z[i])),
+            CurtainVertex::Bottom(x, z) => (f64::from(x), f64::from(z)),
+        }
+    }
+
+    fn inside(t: [(f64, f64); 3], p: (f64, f64)) -> bool {
+        let cross =
+            |a: (f64, f64), b: (f64, f64)| (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0);
+        let d = [cross(t[0], t[1]), cross(t[1], t[2]), cross(t[2], t[0])];
+        d.iter().all(|&v| v >= -1e-9) || d.iter().all(|&v| v <= 1e-9)
+    }
+
+    fn polyline(len: u32, seed: u64, step: u32) -> Polyline {
+        let mut x = seed | 1;
+        let mut pos = vec![0];
+        while *pos.last().unwrap() < len {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            pos.push((pos.last().unwrap() + 1 + (x % u64::from(step)) as u32).min(len));
+        }
+        let z = pos
+            .iter()
+            .map(|&p| ((p * 7919 + seed as u32 % 97) % 41) as i32 - 20)
+            .collect();
+        Polyline { pos, z }
+    }
+
+    proptest! {
+        /// Wherever another polyline lies below the own one, the whole vertical gap between them
+        /// is covered by the curtain (sampled at every whole position and a few heights).
+        #[test]
+        fn the_curtain_closes_every_gap_below(seed in any::<u64>(), n in 1usize..4) {
+            let len = 64;
+            let own = polyline(len, seed, 16);
+            let others: Vec<Polyline> = (0..n).map(|k| polyline(len, seed.wrapping_add(k as u64 * 977), 8)).collect();
+            let tris = curtain(&own, &others);
+            for x in 0..=len {
+                let top = own.at(x).unwrap();
+                let low = others.iter().filter_map(|o| o.at(x)).fold(top, f64::min);
+                for k in 0..=4 {
+                    let z = low + (top - low) * f64::from(k) / 4.0;
+                    if top - z < 1e-9 { continue; }
+                    let covered = tris.iter().any(|t| inside(t.map(|v| point(&own, v)), (f64::from(x), z)));
+                    prop_assert!(covered, "x {} z {} (own {} low {}) not covered", x, z, top, low);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_neighbour_on_the_same_vertices_needs_no_curtain() {
+        let own = Polyline {
+            pos: vec![0, 8, 16],
+            z: vec![5, 9, 2],
+        };
+        assert!(curtain(&own, std::slice::from_ref(&own)).is_empty());
+    }
+}
