@@ -20,6 +20,8 @@
 //! terrain across hides it as it hides a skirt. A segment whose bottom equals it everywhere has
 //! no curtain.
 
+use relief_proto::tile::{Edge, TileId, TileShape, TileSpan};
+
 /// A border polyline along a side: positions along the side (samples, increasing) and heights
 /// (z quanta).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -102,6 +104,78 @@ pub fn curtain(own: &Polyline, others: &[Polyline]) -> Vec<[CurtainVertex; 3]> {
             if area != 0.0 {
                 out.push([CurtainVertex::Own(s), w[0], w[1]]);
             }
+        }
+    }
+    out
+}
+
+/// The polyline of a tile's border along side `e`: its vertices there, by absolute position
+/// along the line (columns for north and south, rows for east and west). `vertex(v)` gives
+/// vertex `v`'s sample position and height; `n` vertices.
+pub fn side_polyline(
+    span: &TileSpan,
+    e: Edge,
+    n: usize,
+    vertex: impl Fn(usize) -> ([u32; 2], i32),
+) -> Polyline {
+    let mut pts: Vec<(u32, i32)> = (0..n)
+        .filter_map(|v| {
+            let ([c, r], z) = vertex(v);
+            let on = match e {
+                Edge::North => (r == span.rows.0).then_some(c),
+                Edge::South => (r == span.rows.1).then_some(c),
+                Edge::West => (c == span.cols.0).then_some(r),
+                Edge::East => (c == span.cols.1).then_some(r),
+            };
+            on.map(|x| (x, z))
+        })
+        .collect();
+    pts.sort_unstable();
+    pts.dedup_by_key(|p| p.0);
+    Polyline {
+        pos: pts.iter().map(|p| p.0).collect(),
+        z: pts.iter().map(|p| p.1).collect(),
+    }
+}
+
+/// The side facing back across `e`.
+pub fn opposite(e: Edge) -> Edge {
+    match e {
+        Edge::North => Edge::South,
+        Edge::South => Edge::North,
+        Edge::East => Edge::West,
+        Edge::West => Edge::East,
+    }
+}
+
+/// The tiles a restricted selection may put across side `e` of `t`, each with its side that
+/// faces `t`: the same level's neighbour, the coarser tile across (when `t` lies on its
+/// parent's side `e`) and the neighbour's children on that side.
+pub fn across(shape: &TileShape, t: TileId, e: Edge) -> Vec<(TileId, Edge)> {
+    let back = opposite(e);
+    let mut out = Vec::new();
+    let Some(n) = shape.neighbour(t, e) else {
+        return out;
+    };
+    out.push((n, back));
+    // `t` lies on its parent's side `e` exactly when its neighbour has another parent, which
+    // is then the coarser tile across.
+    if let Some(np) = n.parent()
+        && Some(np) != t.parent()
+    {
+        out.push((np, back));
+    }
+    let ns = shape.span(n);
+    for c in shape.children(n) {
+        let cs = shape.span(c);
+        let touches = match back {
+            Edge::North => cs.rows.0 == ns.rows.0,
+            Edge::South => cs.rows.1 == ns.rows.1,
+            Edge::West => cs.cols.0 == ns.cols.0,
+            Edge::East => cs.cols.1 == ns.cols.1,
+        };
+        if touches {
+            out.push((c, back));
         }
     }
     out
