@@ -20,44 +20,8 @@
 //! terrain across hides it as it hides a skirt. A segment whose bottom equals it everywhere has
 //! no curtain.
 
+pub use relief_proto::tile::body::curtain::{CurtainVertex, Polyline, fan};
 use relief_proto::tile::{Edge, TileId, TileShape, TileSpan};
-
-/// A border polyline along a side: positions along the side (samples, increasing) and heights
-/// (z quanta).
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct Polyline {
-    /// Positions, increasing.
-    pub pos: Vec<u32>,
-    /// Heights, one per position.
-    pub z: Vec<i32>,
-}
-
-impl Polyline {
-    /// The height at `x`, when `x` lies within the polyline's range.
-    pub fn at(&self, x: u32) -> Option<f64> {
-        let (first, last) = (*self.pos.first()?, *self.pos.last()?);
-        if x < first || x > last {
-            return None;
-        }
-        let k = self.pos.partition_point(|&p| p <= x);
-        if k == self.pos.len() {
-            return Some(f64::from(self.z[k - 1]));
-        }
-        let (p0, p1) = (f64::from(self.pos[k - 1]), f64::from(self.pos[k]));
-        let (z0, z1) = (f64::from(self.z[k - 1]), f64::from(self.z[k]));
-        Some(z0 + (z1 - z0) * (f64::from(x) - p0) / (p1 - p0))
-    }
-}
-
-/// A curtain vertex: one of the tile's own border vertices (by its index along `own`) or a
-/// bottom point (position along the side, height).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum CurtainVertex {
-    /// `own.pos[i]`.
-    Own(usize),
-    /// A point below the border.
-    Bottom(u32, i32),
-}
 
 /// The curtain under `own` against `others` (see the module docs): triangles of own and bottom
 /// vertices.
@@ -88,23 +52,7 @@ pub fn curtain(own: &Polyline, others: &[Polyline]) -> Vec<[CurtainVertex; 3]> {
         if bottom.iter().all(|&(x, z)| f64::from(z) >= top(x)) {
             continue;
         }
-        // The fan from `a` (see the module docs), without degenerate triangles.
-        let pa = (f64::from(a), f64::from(own.z[s]));
-        let v: Vec<CurtainVertex> = bottom
-            .iter()
-            .map(|&(x, z)| CurtainVertex::Bottom(x, z))
-            .chain([CurtainVertex::Own(s + 1)])
-            .collect();
-        for w in v.windows(2) {
-            let [p, q] = [w[0], w[1]].map(|v| match v {
-                CurtainVertex::Own(i) => (f64::from(own.pos[i]), f64::from(own.z[i])),
-                CurtainVertex::Bottom(x, z) => (f64::from(x), f64::from(z)),
-            });
-            let area = (p.0 - pa.0) * (q.1 - pa.1) - (p.1 - pa.1) * (q.0 - pa.0);
-            if area != 0.0 {
-                out.push([CurtainVertex::Own(s), w[0], w[1]]);
-            }
-        }
+        out.extend(fan(own, s, &bottom));
     }
     out
 }
