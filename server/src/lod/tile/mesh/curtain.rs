@@ -20,41 +20,51 @@
 //! terrain across hides it as it hides a skirt. A segment whose bottom equals it everywhere has
 //! no curtain.
 
-pub use relief_proto::tile::body::curtain::{CurtainVertex, Polyline, fan};
+pub use relief_proto::tile::body::curtain::{CurtainVertex, Polyline, SideCurtain, fan};
 use relief_proto::tile::{Edge, TileId, TileShape, TileSpan};
 
-/// The curtain under `own` against `others` (see the module docs): triangles of own and bottom
-/// vertices.
+/// The curtains under `own` against `others` (see the module docs): for each own segment, its
+/// bottom points (ends included), or `None` where nothing lies below it.
+pub fn side_curtain(own: &Polyline, others: &[Polyline]) -> SideCurtain {
+    (0..own.pos.len().saturating_sub(1))
+        .map(|s| {
+            let (a, c) = (own.pos[s], own.pos[s + 1]);
+            let mut xs: Vec<u32> = others
+                .iter()
+                .flat_map(|o| o.pos.iter().copied())
+                .filter(|&x| x > a && x < c)
+                .chain([a, c])
+                .collect();
+            xs.sort_unstable();
+            xs.dedup();
+            let bottom: Vec<(u32, i32)> = xs
+                .iter()
+                .map(|&x| {
+                    let low = others
+                        .iter()
+                        .filter_map(|o| o.at(x))
+                        .chain(own.at(x))
+                        .fold(f64::INFINITY, f64::min);
+                    (x, low.floor() as i32)
+                })
+                .collect();
+            let top = |x: u32| own.at(x).unwrap_or(f64::NEG_INFINITY);
+            bottom
+                .iter()
+                .any(|&(x, z)| f64::from(z) < top(x))
+                .then_some(bottom)
+        })
+        .collect()
+}
+
+/// The curtain triangles under `own` against `others`.
 pub fn curtain(own: &Polyline, others: &[Polyline]) -> Vec<[CurtainVertex; 3]> {
-    let mut out = Vec::new();
-    for s in 0..own.pos.len().saturating_sub(1) {
-        let (a, c) = (own.pos[s], own.pos[s + 1]);
-        let mut xs: Vec<u32> = others
-            .iter()
-            .flat_map(|o| o.pos.iter().copied())
-            .filter(|&x| x > a && x < c)
-            .chain([a, c])
-            .collect();
-        xs.sort_unstable();
-        xs.dedup();
-        let bottom: Vec<(u32, i32)> = xs
-            .iter()
-            .map(|&x| {
-                let low = others
-                    .iter()
-                    .filter_map(|o| o.at(x))
-                    .chain(own.at(x))
-                    .fold(f64::INFINITY, f64::min);
-                (x, low.floor() as i32)
-            })
-            .collect();
-        let top = |x: u32| own.at(x).unwrap_or(f64::NEG_INFINITY);
-        if bottom.iter().all(|&(x, z)| f64::from(z) >= top(x)) {
-            continue;
-        }
-        out.extend(fan(own, s, &bottom));
-    }
-    out
+    side_curtain(own, others)
+        .iter()
+        .enumerate()
+        .filter_map(|(s, b)| b.as_ref().map(|b| fan(own, s, b)))
+        .flatten()
+        .collect()
 }
 
 /// The polyline of a tile's border along side `e`: its vertices there, by absolute position
