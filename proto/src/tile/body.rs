@@ -27,6 +27,7 @@
 //! height at `B` — then one bit per coarser-level segment that holds an own vertex (tiles below
 //! level 0): 1 for a raised patch.
 
+pub mod curtain;
 pub mod irregular;
 pub mod rqt;
 

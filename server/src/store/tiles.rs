@@ -16,11 +16,16 @@
 //! Voids need nothing here: they were filled smoothly before the build, as for the vertex tree.
 
 use crate::lod::tile::mesh::HeightGrid;
-use crate::lod::tile::mesh::pyramid::{Tolerances, irregular_error, mesh_tile};
+use crate::lod::tile::mesh::curtain::{
+    Polyline, SideCurtain, across, fan, side_curtain, side_polyline,
+};
+use crate::lod::tile::mesh::pyramid::{PyramidMesh, Tolerances, irregular_error, mesh_tile};
 use bytemuck::{Pod, Zeroable};
+use relief_proto::tile::body::curtain::encode_curtains;
 use relief_proto::tile::body::{
     MeshKind, Patches, encode_patches, find_patches, grid_height, skirt_triangle_count,
 };
+use relief_proto::tile::{EDGES, Edge};
 use relief_proto::tile::{TileId, TileShape};
 
 /// One tile's entry in the store's `tiles` section (32 bytes, little-endian).
@@ -110,6 +115,33 @@ pub fn build_pyramid(
     let mut records = vec![TileRecord::default(); n];
     let mut data = Vec::new();
     let mut done = 0usize;
+    // Every tile's mesh first: an `rqt` tile's curtains depend on its neighbours' borders.
+    let meshes: Vec<PyramidMesh> = (0..n as u32)
+        .map(|i| {
+            mesh_tile(
+                kind,
+                shape,
+                shape.tile(i).unwrap_or(TileId::ROOT),
+                &zq,
+                &quantised,
+                &tol,
+            )
+        })
+        .collect();
+    let side = |t: TileId, e: Edge| -> Polyline {
+        let m = &meshes[shape.index(t) as usize];
+        let span = shape.span(t);
+        side_polyline(&span, e, m.z.len(), |v| {
+            let p = match &m.irregular {
+                None => {
+                    let (c, r) = span.vertex_pos(v as u32);
+                    [c, r]
+                }
+                Some(irr) => [span.cols.0 + irr.at[v][0], span.rows.0 + irr.at[v][1]],
+            };
+            (p, m.z[v])
+        })
+    };
     // Finest level first, so that children's errors are known when parents saturate.
     for level in (0..=shape.depth()).rev() {
         let (nx, ny) = shape.level_dims(level);
@@ -117,7 +149,8 @@ pub fn build_pyramid(
             for x in 0..nx {
                 let t = TileId { level, x, y };
                 let i = shape.index(t) as usize;
-                let m = mesh_tile(kind, shape, t, &zq, &quantised, &tol);
+                let m = &meshes[i];
+                let mut curtain_tris = 0usize;
                 let (mut err, patches, pblob) = match &m.irregular {
                     None => {
                         let patches = if kind == MeshKind::Grid {
@@ -129,13 +162,38 @@ pub fn build_pyramid(
                         let pblob = encode_patches(shape, t, &m.z, &patches);
                         (grid_err[i], patches, pblob)
                     }
-                    Some(irr) => (
-                        irregular_error(shape, t, irr, &m.z, quantum, &orig),
-                        Patches::default(),
-                        Vec::new(),
-                    ),
+                    Some(irr) => {
+                        let err = irregular_error(shape, t, irr, &m.z, quantum, &orig);
+                        if kind == MeshKind::Rqt {
+                            // Curtains on every side with a neighbour.
+                            let sides: Vec<(Polyline, SideCurtain)> = EDGES
+                                .into_iter()
+                                .filter(|&e| shape.neighbour(t, e).is_some())
+                                .map(|e| {
+                                    let own = side(t, e);
+                                    let others: Vec<Polyline> = across(shape, t, e)
+                                        .into_iter()
+                                        .map(|(n, b)| side(n, b))
+                                        .collect();
+                                    let c = side_curtain(&own, &others);
+                                    (own, c)
+                                })
+                                .collect();
+                            curtain_tris = sides
+                                .iter()
+                                .flat_map(|(own, segs)| {
+                                    segs.iter().enumerate().filter_map(move |(s, b)| {
+                                        b.as_ref().map(|b| fan(own, s, b).len())
+                                    })
+                                })
+                                .sum();
+                            (err, Patches::default(), encode_curtains(&sides))
+                        } else {
+                            (err, Patches::default(), Vec::new())
+                        }
+                    }
                 };
-                let mesh = m.blob;
+                let mesh = m.blob.clone();
                 for c in shape.children(t) {
                     err = err.max(records[shape.index(c) as usize].error);
                 }
@@ -146,7 +204,7 @@ pub fn build_pyramid(
                     error: err,
                     zmin: bounds[i].0,
                     zmax: bounds[i].1,
-                    patch_tris: patches.triangle_count() as u32,
+                    patch_tris: (patches.triangle_count() + curtain_tris) as u32,
                 };
                 data.extend_from_slice(&mesh);
                 data.extend_from_slice(&pblob);

@@ -1,0 +1,190 @@
+//! Curtain blobs (issue 13, `rqt+patches`; work in progress, not yet on the wire): a tile's
+//! crack curtains, side by side, as the server finds them (`server/src/lod/tile/mesh/curtain.rs`
+//! explains them) and as a client rebuilds their triangles.
+//!
+//! Per side with a neighbour (in [`crate::tile::EDGES`] order), per own border segment `a-c`
+//! (the tile's vertices on that side, in order): one order-`k` code, `0` for no curtain, else
+//! `n + 1` with `n` interior bottom points; their positions as codes of `x - previous - 1`
+//! (the first from `a`; every `x` strictly between `a` and `c`); then for the `n + 2` bottom
+//! points (`a`, the interior ones, `c`) the depth `floor(top(x)) - z >= 0` below the segment's
+//! line `top`. The blob starts with the 4-bit order `k`.
+
+use super::{TileBodyError, finished};
+use crate::bits::{BitReader, BitWriter, best_order};
+
+/// A border polyline along a side: positions along the line (samples, increasing) and heights
+/// (z quanta).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Polyline {
+    /// Positions, increasing.
+    pub pos: Vec<u32>,
+    /// Heights, one per position.
+    pub z: Vec<i32>,
+}
+
+impl Polyline {
+    /// The height at `x`, when `x` lies within the polyline's range.
+    pub fn at(&self, x: u32) -> Option<f64> {
+        let (first, last) = (*self.pos.first()?, *self.pos.last()?);
+        if x < first || x > last {
+            return None;
+        }
+        let k = self.pos.partition_point(|&p| p <= x);
+        if k == self.pos.len() {
+            return Some(f64::from(self.z[k - 1]));
+        }
+        let (p0, p1) = (f64::from(self.pos[k - 1]), f64::from(self.pos[k]));
+        let (z0, z1) = (f64::from(self.z[k - 1]), f64::from(self.z[k]));
+        Some(z0 + (z1 - z0) * (f64::from(x) - p0) / (p1 - p0))
+    }
+}
+
+/// A curtain vertex: one of the tile's own border vertices (by its index along the side's
+/// polyline) or a bottom point (position along the line, height).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum CurtainVertex {
+    /// `own.pos[i]`.
+    Own(usize),
+    /// A point below the border.
+    Bottom(u32, i32),
+}
+
+/// One side's curtains: for each own segment, its bottom points (ends included), or `None`.
+pub type SideCurtain = Vec<Option<Vec<(u32, i32)>>>;
+
+/// The triangles of own segment `s`'s curtain over `bottom`: the fan from the segment's start
+/// through the bottom points to its end, without zero-area triangles.
+pub fn fan(own: &Polyline, s: usize, bottom: &[(u32, i32)]) -> Vec<[CurtainVertex; 3]> {
+    let pa = (f64::from(own.pos[s]), f64::from(own.z[s]));
+    let v: Vec<CurtainVertex> = bottom
+        .iter()
+        .map(|&(x, z)| CurtainVertex::Bottom(x, z))
+        .chain([CurtainVertex::Own(s + 1)])
+        .collect();
+    let xy = |v: CurtainVertex| match v {
+        CurtainVertex::Own(i) => (f64::from(own.pos[i]), f64::from(own.z[i])),
+        CurtainVertex::Bottom(x, z) => (f64::from(x), f64::from(z)),
+    };
+    v.windows(2)
+        .filter(|w| {
+            let (p, q) = (xy(w[0]), xy(w[1]));
+            (p.0 - pa.0) * (q.1 - pa.1) - (p.1 - pa.1) * (q.0 - pa.0) != 0.0
+        })
+        .map(|w| [CurtainVertex::Own(s), w[0], w[1]])
+        .collect()
+}
+
+/// The depth code of bottom point `(x, z)` below `own`'s line at `x`.
+fn depth(own: &Polyline, x: u32, z: i32) -> u64 {
+    let top = own.at(x).unwrap_or(f64::from(z)).floor() as i64;
+    (top - i64::from(z)).max(0) as u64
+}
+
+/// Packs the curtains of a tile's sides (each with its own polyline).
+pub fn encode_curtains(sides: &[(Polyline, SideCurtain)]) -> Vec<u8> {
+    let mut codes = Vec::new();
+    for (own, segs) in sides {
+        for (s, seg) in segs.iter().enumerate() {
+            let Some(bottom) = seg else {
+                codes.push(0);
+                continue;
+            };
+            let n = bottom.len().saturating_sub(2);
+            codes.push(n as u64 + 1);
+            let mut prev = own.pos[s];
+            for &(x, _) in &bottom[1..bottom.len() - 1] {
+                codes.push(u64::from(x - prev - 1));
+                prev = x;
+            }
+            codes.extend(bottom.iter().map(|&(x, z)| depth(own, x, z)));
+        }
+    }
+    let k = best_order(codes.iter().copied(), 15);
+    let mut w = BitWriter::new();
+    w.put(k, 4);
+    for c in codes {
+        w.put_eg(c, k);
+    }
+    w.finish()
+}
+
+/// Unpacks curtains for sides whose own polylines are `owns`.
+pub fn decode_curtains(owns: &[Polyline], bytes: &[u8]) -> Result<Vec<SideCurtain>, TileBodyError> {
+    const T: TileBodyError = TileBodyError::Truncated;
+    let mut r = BitReader::new(bytes);
+    let k = r.get(4).ok_or(T)?;
+    let mut out = Vec::with_capacity(owns.len());
+    for own in owns {
+        let mut side = Vec::new();
+        for s in 0..own.pos.len().saturating_sub(1) {
+            let code = r.get_eg(k).ok_or(T)?;
+            if code == 0 {
+                side.push(None);
+                continue;
+            }
+            let (a, c) = (own.pos[s], own.pos[s + 1]);
+            let n = code - 1;
+            if n >= u64::from(c - a) {
+                return Err(TileBodyError::Outside);
+            }
+            let mut xs = vec![a];
+            for _ in 0..n {
+                let d = r.get_eg(k).ok_or(T)?;
+                let x = u64::from(*xs.last().unwrap_or(&a)) + d + 1;
+                if x >= u64::from(c) {
+                    return Err(TileBodyError::Outside);
+                }
+                xs.push(x as u32);
+            }
+            xs.push(c);
+            let mut bottom = Vec::with_capacity(xs.len());
+            for x in xs {
+                let d = r.get_eg(k).ok_or(T)?;
+                let top = own.at(x).ok_or(TileBodyError::Outside)?.floor() as i64;
+                let z = i64::try_from(d)
+                    .ok()
+                    .and_then(|d| top.checked_sub(d))
+                    .and_then(|z| i32::try_from(z).ok())
+                    .ok_or(TileBodyError::Range)?;
+                bottom.push((x, z));
+            }
+            side.push(Some(bottom));
+        }
+        out.push(side);
+    }
+    finished(&r)?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #[test]
+        fn curtains_round_trip_and_junk_never_panics(
+            seed in any::<u64>(), bytes in proptest::collection::vec(any::<u8>(), 0..64)) {
+            let mut x = seed | 1;
+            let mut next = move || { x ^= x << 13; x ^= x >> 7; x ^= x << 17; x };
+            let own = Polyline { pos: vec![0, 5, 6, 20], z: vec![3, -4, 7, 0] };
+            let segs: SideCurtain = (0..3).map(|s| {
+                (next() % 3 != 0).then(|| {
+                    let (a, c) = (own.pos[s], own.pos[s + 1]);
+                    let mut xs = vec![a];
+                    for p in a + 1..c {
+                        if next() % 2 == 0 { xs.push(p); }
+                    }
+                    xs.push(c);
+                    xs.into_iter().map(|p| (p, own.at(p).unwrap().floor() as i32 - (next() % 9) as i32)).collect()
+                })
+            }).collect();
+            let sides = vec![(own.clone(), segs.clone()), (own.clone(), vec![None, None, None])];
+            let blob = encode_curtains(&sides);
+            let back = decode_curtains(&[own.clone(), own.clone()], &blob).unwrap();
+            prop_assert_eq!(&back[0], &segs);
+            prop_assert!(back[1].iter().all(Option::is_none));
+            let _ = decode_curtains(&[own.clone()], &bytes);
+        }
+    }
+}
