@@ -262,6 +262,7 @@ mod tests {
                     z: 90,
                 }],
                 raised: vec![[0, 5, 10]],
+                curtains: Vec::new(),
             },
         };
         let m = TileMesh::of(&geom, &tile, None);

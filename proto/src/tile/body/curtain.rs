@@ -1,6 +1,7 @@
-//! Curtain blobs (issue 13, `rqt+patches`; work in progress, not yet on the wire): a tile's
-//! crack curtains, side by side, as the server finds them (`server/src/lod/tile/mesh/curtain.rs`
-//! explains them) and as a client rebuilds their triangles.
+//! Curtain blobs (issue 13, `rqt+patches`): an `rqt` tile's crack curtains, side by side, as
+//! the server finds them (`server/src/lod/tile/mesh/curtain.rs` explains them) and as a client
+//! rebuilds their triangles ([`decode_tile_curtains`]). They travel in the patch slot of an
+//! `rqt` tile's body; `docs/protocol.md` section 15 specifies the bits.
 //!
 //! Per side with a neighbour (in [`crate::tile::EDGES`] order), per own border segment `a-c`
 //! (the tile's vertices on that side, in order): one order-`k` code, `0` for no curtain, else
@@ -9,8 +10,9 @@
 //! points (`a`, the interior ones, `c`) the depth `floor(top(x)) - z >= 0` below the segment's
 //! line `top`. The blob starts with the 4-bit order `k`.
 
-use super::{TileBodyError, finished};
+use super::{IrregularMesh, TileBodyError, finished};
 use crate::bits::{BitReader, BitWriter, best_order};
+use crate::tile::{EDGES, Edge, TileId, TileShape, TileSpan};
 
 /// A border polyline along a side: positions along the line (samples, increasing) and heights
 /// (z quanta).
@@ -78,6 +80,105 @@ pub fn fan(own: &Polyline, s: usize, bottom: &[(u32, i32)]) -> Vec<[CurtainVerte
 fn depth(own: &Polyline, x: u32, z: i32) -> u64 {
     let top = own.at(x).unwrap_or(f64::from(z)).floor() as i64;
     (top - i64::from(z)).max(0) as u64
+}
+
+/// A corner of a curtain triangle as a client draws it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CurtainPoint {
+    /// The tile's own vertex with this index.
+    Vertex(u32),
+    /// A point below the tile's border: grid column and row, height in z quanta.
+    Below {
+        /// Grid column and row.
+        at: (u32, u32),
+        /// Height, z quanta.
+        z: i32,
+    },
+}
+
+/// The border of tile `t` along side `e` for a mesh with vertices at `at` (offsets from the
+/// span's first sample) and heights `z`: the polyline by absolute position along the line
+/// (columns for north and south, rows for east and west), and each point's vertex index. A
+/// position held by several vertices keeps the lowest-numbered one.
+pub fn side_of(span: &TileSpan, e: Edge, at: &[[u32; 2]], z: &[i32]) -> (Polyline, Vec<u32>) {
+    let (w, h) = (span.cols.1 - span.cols.0, span.rows.1 - span.rows.0);
+    let mut pts: Vec<(u32, u32)> = at
+        .iter()
+        .enumerate()
+        .filter_map(|(v, p)| {
+            let on = match e {
+                Edge::North => (p[1] == 0).then_some(span.cols.0 + p[0]),
+                Edge::South => (p[1] == h).then_some(span.cols.0 + p[0]),
+                Edge::West => (p[0] == 0).then_some(span.rows.0 + p[1]),
+                Edge::East => (p[0] == w).then_some(span.rows.0 + p[1]),
+            };
+            on.map(|x| (x, v as u32))
+        })
+        .collect();
+    pts.sort_unstable();
+    pts.dedup_by_key(|p| p.0);
+    let own = Polyline {
+        pos: pts.iter().map(|p| p.0).collect(),
+        z: pts.iter().map(|p| z[p.1 as usize]).collect(),
+    };
+    (own, pts.into_iter().map(|p| p.1).collect())
+}
+
+/// The grid position of the point `x` along side `e` of `span`.
+fn on_side(span: &TileSpan, e: Edge, x: u32) -> (u32, u32) {
+    match e {
+        Edge::North => (x, span.rows.0),
+        Edge::South => (x, span.rows.1),
+        Edge::West => (span.cols.0, x),
+        Edge::East => (span.cols.1, x),
+    }
+}
+
+/// The sides of `t` that carry curtains, in blob order: those with a neighbour, in
+/// [`EDGES`] order.
+pub fn curtain_sides(shape: &TileShape, t: TileId) -> impl Iterator<Item = Edge> + '_ {
+    EDGES
+        .into_iter()
+        .filter(move |&e| shape.neighbour(t, e).is_some())
+}
+
+/// Unpacks the curtain blob of `rqt` tile `t` whose decoded mesh is `mesh` with heights `z`,
+/// into triangles ([`fan`] for every segment with a curtain).
+pub fn decode_tile_curtains(
+    shape: &TileShape,
+    t: TileId,
+    mesh: &IrregularMesh,
+    z: &[i32],
+    bytes: &[u8],
+) -> Result<Vec<[CurtainPoint; 3]>, TileBodyError> {
+    if z.len() != mesh.at.len() {
+        return Err(TileBodyError::Heights(z.len(), mesh.at.len()));
+    }
+    let span = shape.span(t);
+    let sides: Vec<(Edge, Polyline, Vec<u32>)> = curtain_sides(shape, t)
+        .map(|e| {
+            let (own, ids) = side_of(&span, e, &mesh.at, z);
+            (e, own, ids)
+        })
+        .collect();
+    let owns: Vec<Polyline> = sides.iter().map(|s| s.1.clone()).collect();
+    let curtains = decode_curtains(&owns, bytes)?;
+    let mut out = Vec::new();
+    for ((e, own, ids), segs) in sides.iter().zip(&curtains) {
+        for (s, bottom) in segs.iter().enumerate() {
+            let Some(bottom) = bottom else { continue };
+            out.extend(fan(own, s, bottom).into_iter().map(|tri| {
+                tri.map(|v| match v {
+                    CurtainVertex::Own(i) => CurtainPoint::Vertex(ids[i]),
+                    CurtainVertex::Bottom(x, z) => CurtainPoint::Below {
+                        at: on_side(&span, *e, x),
+                        z,
+                    },
+                })
+            }));
+        }
+    }
+    Ok(out)
 }
 
 /// Packs the curtains of a tile's sides (each with its own polyline).
@@ -184,7 +285,7 @@ mod tests {
             let back = decode_curtains(&[own.clone(), own.clone()], &blob).unwrap();
             prop_assert_eq!(&back[0], &segs);
             prop_assert!(back[1].iter().all(Option::is_none));
-            let _ = decode_curtains(&[own.clone()], &bytes);
+            let _ = decode_curtains(std::slice::from_ref(&own), &bytes);
         }
     }
 }
