@@ -1,5 +1,5 @@
 //! Curtain ("rqt patches") triangles against skirt triangles over a whole `rqt` pyramid (issue
-//! 13, work in progress): `cargo run --release -p relief-server --example curtain_ratio --
+//! 13): `cargo run --release -p relief-server --example curtain_ratio --
 //! synthetic:1025 [TILE]`. The tiles are built as the store builds them and decoded from their
 //! blobs; each tile's curtain is taken against every tile a restricted selection may put across
 //! each of its sides.

@@ -2,8 +2,8 @@
 //! its crack-patch blob, its honest geometric error and its height bounds.
 //!
 //! - **Mesh**: `grid` (every lattice vertex), `rqt` or `tin` ([`crate::lod::tile::mesh::pyramid`]
-//!   chooses the vertices, [`relief_proto::tile::body`] packs them). Adaptive stores carry no
-//!   crack patches: `tin` tiles share their border points, `rqt` tiles hang skirts.
+//!   chooses the vertices, [`relief_proto::tile::body`] packs them). `tin` tiles carry no
+//!   crack patches (they share their border points).
 //! - **Geometric error**: the largest vertical distance, metres, between the tile's mesh and
 //!   every full-resolution sample it covers (the original heights, before quantisation), then
 //!   saturated up the pyramid (a tile's error is at least each child's), so that a selection by
@@ -11,7 +11,10 @@
 //! - **Bounds**: the lowest and highest sample the tile covers, quanta (rounded outward), for
 //!   the box its screen error is measured to.
 //! - **Patches**: paper 001, section 2.2, steps 1-4 for dropped cracks plus the raised ones
-//!   ([`relief_proto::tile::body`] explains why), found from the samples and packed.
+//!   ([`relief_proto::tile::body`] explains why), found from the samples and packed; for `rqt`
+//!   tiles, crack curtains down to every neighbour a selection may put across each side
+//!   ([`crate::lod::tile::mesh::curtain`]), taken from every tile's mesh and packed in the
+//!   patch slot ([`relief_proto::tile::body::curtain`]; store format 4).
 //!
 //! Voids need nothing here: they were filled smoothly before the build, as for the vertex tree.
 
@@ -284,6 +287,50 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Issue 13, `rqt+patches`: every `rqt` tile's curtain blob decodes as a client decodes it
+    /// (against the decoded mesh alone) to as many triangles as the store counted, over the
+    /// tile's own border vertices and points on its sides; tiles with a neighbour have some.
+    #[test]
+    fn rqt_curtain_blobs_decode_to_the_counted_triangles() {
+        use relief_proto::tile::body::curtain::{CurtainPoint, decode_tile_curtains};
+        let (w, h) = (129u32, 129u32);
+        let heights: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (c, r) = ((i % w) as f32, (i / w) as f32);
+                (c * 0.31).sin() * 35.0 + (r * 0.17).cos() * 22.0 + ((c * r) * 0.011).sin() * 7.0
+            })
+            .collect();
+        let shape = TileShape::new(w, h, 16).unwrap();
+        let p = build_pyramid(&shape, &heights, 0.1, MeshKind::Rqt, |_| {});
+        let mut total = 0;
+        for i in 0..shape.tile_count() {
+            let t = shape.tile(i).unwrap();
+            let r = p.records[i as usize];
+            let data = &p.data[r.offset as usize..];
+            let (mesh, blob) = data.split_at(r.mesh_len as usize);
+            let span = shape.span(t);
+            let m = decode_mesh(&span, mesh).unwrap();
+            let irr = m.irregular.as_ref().unwrap();
+            let tris =
+                decode_tile_curtains(&shape, t, irr, &m.z, &blob[..r.patch_len as usize]).unwrap();
+            assert_eq!(tris.len(), r.patch_tris as usize, "{t:?}");
+            let on_side = |(c, r): (u32, u32)| {
+                c == span.cols.0 || c == span.cols.1 || r == span.rows.0 || r == span.rows.1
+            };
+            for p in tris.iter().flatten() {
+                match *p {
+                    CurtainPoint::Vertex(v) => {
+                        let a = irr.at[v as usize];
+                        assert!(on_side((span.cols.0 + a[0], span.rows.0 + a[1])));
+                    }
+                    CurtainPoint::Below { at, .. } => assert!(on_side(at), "{t:?} {at:?}"),
+                }
+            }
+            total += tris.len();
+        }
+        assert!(total > 0);
     }
 
     #[test]

@@ -55,22 +55,26 @@ pub enum CurtainVertex {
 pub type SideCurtain = Vec<Option<Vec<(u32, i32)>>>;
 
 /// The triangles of own segment `s`'s curtain over `bottom`: the fan from the segment's start
-/// through the bottom points to its end, without zero-area triangles.
+/// through the bottom points to its end, without the triangles that repeat a point (a bottom
+/// point on the segment's start or end). Triangles of zero area with three distinct points
+/// stay: a bottom point on the segment itself is a neighbour's border vertex there (a
+/// T-junction), and the flat triangle through it shares that vertex exactly, which closes the
+/// pixel-wide holes a rasterizer leaves along a T-junction.
 pub fn fan(own: &Polyline, s: usize, bottom: &[(u32, i32)]) -> Vec<[CurtainVertex; 3]> {
-    let pa = (f64::from(own.pos[s]), f64::from(own.z[s]));
     let v: Vec<CurtainVertex> = bottom
         .iter()
         .map(|&(x, z)| CurtainVertex::Bottom(x, z))
         .chain([CurtainVertex::Own(s + 1)])
         .collect();
     let xy = |v: CurtainVertex| match v {
-        CurtainVertex::Own(i) => (f64::from(own.pos[i]), f64::from(own.z[i])),
-        CurtainVertex::Bottom(x, z) => (f64::from(x), f64::from(z)),
+        CurtainVertex::Own(i) => (own.pos[i], own.z[i]),
+        CurtainVertex::Bottom(x, z) => (x, z),
     };
+    let pa = xy(CurtainVertex::Own(s));
     v.windows(2)
         .filter(|w| {
             let (p, q) = (xy(w[0]), xy(w[1]));
-            (p.0 - pa.0) * (q.1 - pa.1) - (p.1 - pa.1) * (q.0 - pa.0) != 0.0
+            p != pa && q != pa && p != q
         })
         .map(|w| [CurtainVertex::Own(s), w[0], w[1]])
         .collect()

@@ -1,4 +1,4 @@
-//! Crack curtains for adaptive tiles (issue 13, `rqt+patches`; work in progress): paper 001's
+//! Crack curtains for adaptive tiles (issue 13, `rqt+patches`): paper 001's
 //! patches generalised to tiles whose border vertices differ from their neighbours'.
 //!
 //! Along one side of a tile, in the vertical plane of that side, the tile's border is a polyline
@@ -17,8 +17,11 @@
 //! **Triangles.** For each own segment `a-c`, the polygon `a, c, b(x_m), ..., b(x_0)` over the
 //! breakpoints `x_0 = a < ... < x_m = c` is fanned from `a`. A fan triangle may reach below the
 //! bottom where the bottom is not convex; it stays below `own`, in the side's plane, where the
-//! terrain across hides it as it hides a skirt. A segment whose bottom equals it everywhere has
-//! no curtain.
+//! terrain across hides it as it hides a skirt. A segment with no neighbour breakpoint inside
+//! and whose bottom equals it at both ends has no curtain; one with a breakpoint inside keeps
+//! its curtain even where that has no depth: the flat triangles through the neighbour's vertex
+//! close the pixel-wide holes a rasterizer leaves along a T-junction (issue 13's crack test in
+//! images found two such pixels in 120 frames without them).
 
 pub use relief_proto::tile::body::curtain::{CurtainVertex, Polyline, SideCurtain, fan};
 use relief_proto::tile::{Edge, TileId, TileShape, TileSpan};
@@ -49,9 +52,9 @@ pub fn side_curtain(own: &Polyline, others: &[Polyline]) -> SideCurtain {
                 })
                 .collect();
             let top = |x: u32| own.at(x).unwrap_or(f64::NEG_INFINITY);
-            bottom
-                .iter()
-                .any(|&(x, z)| f64::from(z) < top(x))
+            // A neighbour's vertex inside the segment is a T-junction: the curtain stays even
+            // where it has no depth (see `fan`).
+            (bottom.len() > 2 || bottom.iter().any(|&(x, z)| f64::from(z) < top(x)))
                 .then_some(bottom)
         })
         .collect()
@@ -155,7 +158,9 @@ mod tests {
         let cross =
             |a: (f64, f64), b: (f64, f64)| (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0);
         let d = [cross(t[0], t[1]), cross(t[1], t[2]), cross(t[2], t[0])];
-        d.iter().all(|&v| v >= -1e-9) || d.iter().all(|&v| v <= 1e-9)
+        // A flat triangle (kept for T-junctions) covers nothing.
+        let area = (t[1].0 - t[0].0) * (t[2].1 - t[0].1) - (t[1].1 - t[0].1) * (t[2].0 - t[0].0);
+        area != 0.0 && (d.iter().all(|&v| v >= -1e-9) || d.iter().all(|&v| v <= 1e-9))
     }
 
     fn polyline(len: u32, seed: u64, step: u32) -> Polyline {
