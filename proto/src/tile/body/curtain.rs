@@ -266,6 +266,46 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// The curtain blob example of `docs/protocol.md` section 15.2.
+    #[test]
+    fn the_curtain_example_of_the_protocol_doc_is_what_the_code_sends() {
+        let own = Polyline {
+            pos: vec![32, 40, 48],
+            z: vec![100, 104, 100],
+        };
+        let segs: SideCurtain = vec![Some(vec![(32, 100), (36, 97), (40, 101)]), None];
+        let blob = encode_curtains(&[(own.clone(), segs.clone())]);
+        let hex: Vec<String> = blob.iter().map(|b| format!("{b:02X}")).collect();
+        let hex = hex.join(" ");
+        println!("{hex}");
+        assert_eq!(
+            decode_curtains(std::slice::from_ref(&own), &blob),
+            Ok(vec![segs.clone()])
+        );
+        let tris = fan(&own, 0, segs[0].as_ref().unwrap());
+        assert_eq!(
+            tris,
+            vec![
+                [
+                    CurtainVertex::Own(0),
+                    CurtainVertex::Bottom(36, 97),
+                    CurtainVertex::Bottom(40, 101)
+                ],
+                [
+                    CurtainVertex::Own(0),
+                    CurtainVertex::Bottom(40, 101),
+                    CurtainVertex::Own(1)
+                ],
+            ]
+        );
+        let doc = include_str!("../../../../docs/protocol.md");
+        let start = doc.find("**Curtain blob**").expect("the section");
+        assert!(
+            doc[start..].contains(&format!("`{hex}`")),
+            "the doc lacks {hex}"
+        );
+    }
+
     proptest! {
         #[test]
         fn curtains_round_trip_and_junk_never_panics(
