@@ -59,7 +59,8 @@ enum Command {
         #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
         tile_size: u32,
         /// How the tile stream's tiles are meshed: `grid` (every lattice vertex; crack
-        /// patches or skirts), `rqt` (paper 002's restricted quadtree; skirts) or `tin` (paper
+        /// patches or skirts), `rqt` (paper 002's restricted quadtree; crack curtains or
+        /// skirts) or `tin` (paper
         /// 003's greedy Delaunay TIN with shared borders, or skirts). See docs/streams.md.
         #[arg(long, value_enum, default_value = "grid")]
         tile_mesh: TileMeshArg,
@@ -143,7 +144,7 @@ enum BenchCommand {
         tile_mesh: TileMeshArg,
     },
     /// Fly the path once per stream (vertex; tiles grid+skirts, grid+patches, rqt+skirts,
-    /// tin+shared-borders), each tuned until its measured p99 pixel error is within 5 % of the
+    /// rqt+patches, tin+shared-borders), each tuned until its measured p99 pixel error is within 5 % of the
     /// target, and compare bytes (raw and gzipped), triangles and costs. Prints Markdown, or
     /// JSON with --json; --plot writes bytes against measured error as SVG.
     Compare {

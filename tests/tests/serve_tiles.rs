@@ -228,3 +228,56 @@ async fn the_pyramid_over_http_with_etags_gzip_and_clear_errors() {
     assert_eq!(s.counters().desyncs, 0);
     server.stop().await;
 }
+
+/// Issue 13, `rqt+patches`: an `rqt` terrain serves its tiles' crack curtains in the patch slot,
+/// over HTTP (`?crack=patches`, none with `?crack=skirts`) and in tile sessions asking for
+/// patches, and a client decodes and draws them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn rqt_tiles_carry_their_curtains_over_http_and_in_sessions() {
+    use relief_proto::tile::body::MeshKind;
+    use relief_proto::tile::body::curtain::decode_tile_curtains;
+    let (_dir, server) = relief_tests::serve_tiles_of(16, MeshKind::Rqt).await;
+    let shape = server.state.terrain().unwrap().store.tile_shape().clone();
+    let t = relief_proto::tile::TileId {
+        level: 2,
+        x: 1,
+        y: 1,
+    };
+    let url = format!("/v1/tiles/{}/{}/{}", t.level, t.x, t.y);
+    let split = |body: &[u8]| {
+        let mut at = 0;
+        let mesh_len = get_varint(body, &mut at).unwrap() as usize;
+        let patch_len = get_varint(body, &mut at).unwrap() as usize;
+        assert_eq!(at + mesh_len + patch_len, body.len());
+        (
+            body[at..at + mesh_len].to_vec(),
+            body[at + mesh_len..].to_vec(),
+        )
+    };
+    let (status, _, body) = http(&server, &format!("{url}?crack=patches"), &[]).await;
+    assert_eq!(status, 200);
+    let (mesh, curtains) = split(&body);
+    let m = decode_mesh(&shape.span(t), &mesh).unwrap();
+    let irr = m.irregular.as_ref().expect("an rqt mesh");
+    let tris = decode_tile_curtains(&shape, t, irr, &m.z, &curtains).unwrap();
+    assert!(!tris.is_empty(), "an inner tile has curtains");
+    let (_, _, body) = http(&server, &format!("{url}?crack=skirts"), &[]).await;
+    assert!(split(&body).1.is_empty());
+
+    let s = fly(
+        tiles_config(&server.url(), u32::MAX, None),
+        &path(0, 20),
+        None,
+    )
+    .await;
+    assert_eq!(s.counters().desyncs, 0);
+    let tiles = s.tiles().unwrap();
+    let drawn: usize = tiles
+        .mirror()
+        .active()
+        .iter()
+        .map(|&i| tiles.mirror().tile(i).unwrap().patches.curtains.len())
+        .sum();
+    assert!(drawn > 0, "the session's tiles hold curtains");
+    server.stop().await;
+}

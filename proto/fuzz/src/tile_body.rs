@@ -2,7 +2,8 @@
 //! and then a tile delta body, decoded as a tile client does: [`TileDelta::decode`] for the
 //! pyramid, then each added tile's mesh blob ([`decode_mesh`]) and patch blob
 //! ([`decode_patches`]; against the decoded heights, or flat ones when the mesh is refused, so
-//! that patch blobs are explored on their own too).
+//! that patch blobs are explored on their own too; an `rqt` tile's patch blob as its crack
+//! curtains, [`decode_tile_curtains`]).
 //!
 //! Whatever decodes is re-encoded and decoded again to the same value (`rqt` and `tin` meshes
 //! too: their vertices must lie in the tile and their triangles name them). The delta's re-encoding
@@ -12,6 +13,10 @@
 //! differ), and re-encoding that gives the same bytes. Patches must name vertices of the tile.
 
 use crate::Header;
+use relief_proto::tile::body::curtain::{
+    CurtainPoint, Polyline, curtain_sides, decode_curtains, decode_tile_curtains, encode_curtains,
+    side_of,
+};
 use relief_proto::tile::body::irregular::canonical;
 use relief_proto::tile::body::rqt::encode_rqt;
 use relief_proto::tile::body::{
@@ -54,10 +59,7 @@ fn tile_blobs(shape: &TileShape, t: TileId, blobs: &TileBlobs) {
     let span = shape.span(t);
     let n = span.vertex_count();
     let z = match decode_mesh(&span, &blobs.mesh) {
-        Ok(DecodedMesh {
-            z,
-            irregular: None,
-        }) => {
+        Ok(DecodedMesh { z, irregular: None }) => {
             assert_eq!(z.len(), n);
             let mesh = encode_mesh(&span, &z);
             let again = decode_mesh(&span, &mesh).expect("an encoded mesh");
@@ -70,6 +72,9 @@ fn tile_blobs(shape: &TileShape, t: TileId, blobs: &TileBlobs) {
             irregular: Some(m),
         }) => {
             irregular_round_trip(&span, &m, &z);
+            if m.kind == MeshKind::Rqt {
+                curtain_round_trip(shape, t, &m, &z, &blobs.patches);
+            }
             return;
         }
         Err(_) => vec![0; n],
@@ -90,18 +95,64 @@ fn tile_blobs(shape: &TileShape, t: TileId, blobs: &TileBlobs) {
     assert_eq!(decode_patches(shape, t, &z, &blob), Ok(patches));
 }
 
+/// Decodes an `rqt` tile's patch blob as its crack curtains (issue 13): the triangles name the
+/// tile's vertices and points on its sides; the curtains re-encode no longer than the input
+/// and decode the same.
+fn curtain_round_trip(shape: &TileShape, t: TileId, m: &IrregularMesh, z: &[i32], bytes: &[u8]) {
+    let span = shape.span(t);
+    let Ok(tris) = decode_tile_curtains(shape, t, m, z, bytes) else {
+        return;
+    };
+    for p in tris.iter().flatten() {
+        match *p {
+            CurtainPoint::Vertex(v) => assert!((v as usize) < z.len()),
+            CurtainPoint::Below { at: (c, r), .. } => assert!(
+                (c == span.cols.0 || c == span.cols.1) && (span.rows.0..=span.rows.1).contains(&r)
+                    || (r == span.rows.0 || r == span.rows.1)
+                        && (span.cols.0..=span.cols.1).contains(&c)
+            ),
+        }
+    }
+    let owns: Vec<Polyline> = curtain_sides(shape, t)
+        .map(|e| side_of(&span, e, &m.at, z).0)
+        .collect();
+    let sides = decode_curtains(&owns, bytes).expect("decoded once");
+    let blob = encode_curtains(
+        &owns
+            .iter()
+            .cloned()
+            .zip(sides.iter().cloned())
+            .collect::<Vec<_>>(),
+    );
+    assert!(
+        blob.len() <= bytes.len(),
+        "re-encoding grew {} bytes to {}",
+        bytes.len(),
+        blob.len()
+    );
+    assert_eq!(decode_curtains(&owns, &blob), Ok(sides));
+}
+
 /// Re-encodes a decoded `rqt` or `tin` mesh and checks it decodes to the same mesh (`tin` in its
 /// canonical order). Vertices lie in the tile and triangles name them.
 fn irregular_round_trip(span: &TileSpan, m: &IrregularMesh, z: &[i32]) {
     let (w, h) = (span.cols.1 - span.cols.0, span.rows.1 - span.rows.0);
     assert_eq!(m.at.len(), z.len());
     assert!(m.at.iter().all(|p| p[0] <= w && p[1] <= h));
-    assert!(m.triangles.iter().flatten().all(|&v| (v as usize) < z.len()));
+    assert!(
+        m.triangles
+            .iter()
+            .flatten()
+            .all(|&v| (v as usize) < z.len())
+    );
     let (blob, want) = match m.kind {
         MeshKind::Rqt => {
             let s = span.stride;
             let height: HashMap<[u32; 2], i32> =
-                m.at.iter().map(|p| p.map(|v| v / s)).zip(z.iter().copied()).collect();
+                m.at.iter()
+                    .map(|p| p.map(|v| v / s))
+                    .zip(z.iter().copied())
+                    .collect();
             let blob = encode_rqt(
                 span,
                 |p| height.contains_key(&p),
@@ -131,6 +182,36 @@ fn made_up_blobs(shape: &TileShape, t: TileId) -> TileBlobs {
     TileBlobs {
         mesh: encode_mesh(&span, &z),
         patches: encode_patches(shape, t, &z, &patches),
+    }
+}
+
+/// The blobs of `rqt` tile `t` over the same made-up terrain, every third lattice point active,
+/// with a curtain one and two quanta deep under every border segment.
+fn made_up_rqt_blobs(shape: &TileShape, t: TileId) -> TileBlobs {
+    let sample = |c: u32, r: u32| (3 * c + 2 * r) as i32 + ((c * 7 + r * 13) % 11) as i32 - 5;
+    let span = shape.span(t);
+    let s = span.stride;
+    let z_at = |p: [u32; 2]| sample(span.cols.0 + p[0] * s, span.rows.0 + p[1] * s);
+    let mesh = encode_rqt(&span, |p| (p[0] + p[1]) % 3 == 0, z_at).expect("square tiles");
+    let m = decode_mesh(&span, &mesh).expect("an encoded mesh");
+    let irr = m.irregular.expect("an rqt mesh");
+    let sides: Vec<_> = curtain_sides(shape, t)
+        .map(|e| {
+            let (own, _) = side_of(&span, e, &irr.at, &m.z);
+            let segs = (0..own.pos.len() - 1)
+                .map(|k| {
+                    Some(vec![
+                        (own.pos[k], own.z[k] - 1),
+                        (own.pos[k + 1], own.z[k + 1] - 2),
+                    ])
+                })
+                .collect();
+            (own, segs)
+        })
+        .collect();
+    TileBlobs {
+        mesh,
+        patches: encode_curtains(&sides),
     }
 }
 
@@ -174,5 +255,24 @@ pub fn seeds() -> Vec<(String, Vec<u8>)> {
             out.push((format!("{name}_{w}x{h}"), header.with(&d.encode())));
         }
     }
+    // An `rqt` pyramid (square tiles) split once, with curtains (issue 13).
+    let (w, h, param) = (33, 33, 2);
+    let shape = TileShape::new(w, h, 2 << param).expect("a small pyramid");
+    let split = TileDelta {
+        removed: vec![],
+        added: shape
+            .children(TileId::ROOT)
+            .map(|c| AddedTile {
+                tile: shape.index(c),
+                body: Some(made_up_rqt_blobs(&shape, c)),
+            })
+            .collect(),
+    };
+    let header = Header {
+        width: w,
+        height: h,
+        param,
+    };
+    out.push((format!("rqt_split_{w}x{h}"), header.with(&split.encode())));
     out
 }

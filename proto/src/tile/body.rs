@@ -30,6 +30,7 @@
 //! height at `B` — then one bit per coarser-level segment that holds an own vertex (tiles below
 //! level 0): 1 for a raised patch.
 
+pub mod curtain;
 pub mod irregular;
 pub mod rqt;
 
@@ -66,7 +67,7 @@ pub enum TileBodyError {
     /// expected): an irregular mesh, or a mesh of another tile.
     #[error("tile patches need {1} grid heights, got {0}")]
     Heights(usize, usize),
-    /// A patch blob where the mesh kind carries none.
+    /// A patch blob where the mesh kind carries none (or the session asked for none).
     #[error("tile mesh kind {0} carries no patch blob")]
     PatchesUnexpected(u32),
 }
@@ -132,12 +133,15 @@ pub struct Patches {
     pub dropped: Vec<Dropped>,
     /// Patches under the tile's own raised edge vertices: `[A, B, C]` vertex indices.
     pub raised: Vec<[u32; 3]>,
+    /// An `rqt` tile's crack curtains ([`curtain`]): the patches of a mesh whose border
+    /// vertices differ from its neighbours' (empty for a grid tile).
+    pub curtains: Vec<[curtain::CurtainPoint; 3]>,
 }
 
 impl Patches {
     /// Triangles the patches draw.
     pub fn triangle_count(&self) -> usize {
-        self.dropped.len() + self.raised.len()
+        self.dropped.len() + self.raised.len() + self.curtains.len()
     }
 }
 

@@ -27,7 +27,8 @@ pub struct TileMesh {
     /// Vertex indices, three a triangle: the mesh, the dropped patches, the raised patches,
     /// then the skirts.
     pub indices: Vec<u32>,
-    /// Triangles of the mesh, dropped patches, raised patches and skirts, in that order.
+    /// Triangles of the mesh, dropped patches, raised patches (an `rqt` tile's curtains) and
+    /// skirts, in that order.
     pub counts: [u32; 4],
 }
 
@@ -149,6 +150,7 @@ mod tests {
                     z: 90,
                 }],
                 raised: vec![[0, 5, 10]],
+                curtains: Vec::new(),
             },
         };
         let m = TileMesh::of(&geom, &tile, None);

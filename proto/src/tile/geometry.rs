@@ -1,4 +1,5 @@
-//! A held tile's triangles in world metres: its mesh, then its crack patches or skirts. This is
+//! A held tile's triangles in world metres: its mesh, then its crack patches (a grid tile's
+//! dropped and raised patches, an `rqt` tile's curtains) or skirts. This is
 //! all the drawing a thin client does; patches and skirts are vertical and must be drawn
 //! without back-face culling.
 //!
@@ -11,10 +12,12 @@
 //! could open cracks that no patch closes.
 
 use super::body::IrregularMesh;
+use super::body::curtain::CurtainPoint;
 use super::body::{cell_height, grid_height, grid_triangles, skirt_triangle_count};
 use super::mirror::TileData;
 use super::{EDGES, Edge};
 use crate::tree::WorldFrame;
+use rustc_hash::FxHashMap;
 
 /// A tile's triangles.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -53,6 +56,17 @@ pub fn tile_triangles(
         patches.push([d.a, positions.len() as u32 - 1, d.c]);
     }
     patches.extend(tile.patches.raised.iter().copied());
+    // Curtain points are shared by the fan triangles of a segment: one position each.
+    let mut below: FxHashMap<CurtainPoint, u32> = FxHashMap::default();
+    for tri in &tile.patches.curtains {
+        patches.push(tri.map(|p| match p {
+            CurtainPoint::Vertex(v) => v,
+            CurtainPoint::Below { at, z } => *below.entry(p).or_insert_with(|| {
+                positions.push(place(at.0, at.1, z));
+                positions.len() as u32 - 1
+            }),
+        }));
+    }
     let mut skirts = Vec::new();
     if let Some(depth) = skirt {
         skirts.reserve(tile.skirt_triangle_count());

@@ -2,8 +2,9 @@
 //! from tile deltas alone and checked by digest. A thin client needs nothing else: each held
 //! tile's [`TileData`] gives its triangles ([`super::geometry`]), patches included.
 
+use super::body::curtain::decode_tile_curtains;
 use super::body::{
-    DecodedMesh, IrregularMesh, Patches, TileBodyError, decode_mesh, decode_patches,
+    DecodedMesh, IrregularMesh, MeshKind, Patches, TileBodyError, decode_mesh, decode_patches,
 };
 use super::cache::{TileCache, TileSetError};
 use super::delta::{TileDelta, TileDeltaError};
@@ -134,7 +135,14 @@ impl TileMirror {
             let body_err = |e| TileMirrorError::Body(a.tile, e);
             let DecodedMesh { z, irregular } = decode_mesh(&span, &b.mesh).map_err(body_err)?;
             let patches = match &irregular {
-                // Irregular meshes carry no patch blob (tin's shared borders need none).
+                // An rqt tile's patch blob holds its crack curtains.
+                Some(m) if m.kind == MeshKind::Rqt && self.crack == CrackMode::Patches => Patches {
+                    curtains: decode_tile_curtains(&self.shape, tile, m, &z, &b.patches)
+                        .map_err(body_err)?,
+                    ..Patches::default()
+                },
+                // Other irregular meshes carry no patch blob (tin's shared borders need none),
+                // nor does any tile in a session without patches.
                 Some(m) if !b.patches.is_empty() => {
                     return Err(body_err(TileBodyError::PatchesUnexpected(m.kind as u32)));
                 }

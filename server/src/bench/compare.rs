@@ -12,10 +12,15 @@
 //!
 //! Streams: `vertex` (the Haar vertex stream); `tiles/grid+skirts` (the Cesium-style baseline,
 //! each tile sent once into an unlimited client cache); `tiles/grid+patches`;
-//! `tiles/rqt+skirts` (paper 002's mesh; Relief has no `rqt` patches yet); `tiles/tin+shared-
-//! borders` (paper 003, crack-free by its shared border points). One store is built per mesh
+//! `tiles/rqt+skirts` and `tiles/rqt+patches` (paper 002's mesh, with skirts or with its crack
+//! curtains, paper 001's patches generalised); `tiles/tin+shared-borders` (paper 003,
+//! crack-free by its shared border points). One store is built per mesh
 //! kind and flown at every threshold. Bytes are the messages as they go on the WebSocket, raw
 //! and with each message gzipped.
+//!
+//! The baseline's tiles are also encoded as Cesium quantized-mesh tiles (issue 14's encoder,
+//! each tile gzipped on its own as a tile server sends it), reported beside it as
+//! `quantized-mesh`: the same tiles, tau and error, in the standard format.
 //!
 //! The curve: each stream is also tuned to the target's other `--levels` (e.g. 0.5x and 2x),
 //! which gives bytes against measured error at three error levels, plotted to an SVG.
@@ -81,12 +86,16 @@ pub enum StreamSpec {
 }
 
 impl StreamSpec {
+    /// The Cesium-style baseline, `tiles/grid+skirts` (also reported as quantized-mesh bytes).
+    pub const BASELINE: StreamSpec = StreamSpec::Tiles(MeshKind::Grid, CrackMode::Skirts);
+
     /// Every stream, in report order.
-    pub const ALL: [StreamSpec; 5] = [
+    pub const ALL: [StreamSpec; 6] = [
         StreamSpec::Vertex,
         StreamSpec::Tiles(MeshKind::Grid, CrackMode::Skirts),
         StreamSpec::Tiles(MeshKind::Grid, CrackMode::Patches),
         StreamSpec::Tiles(MeshKind::Rqt, CrackMode::Skirts),
+        StreamSpec::Tiles(MeshKind::Rqt, CrackMode::Patches),
         StreamSpec::Tiles(MeshKind::Tin, CrackMode::Patches),
     ];
 
@@ -138,6 +147,10 @@ pub struct Flown {
     pub client_us_median: f64,
     /// Deltas the client could not apply.
     pub desyncs: u64,
+    /// For `tiles/grid+skirts`: the same tiles sent as Cesium quantized-mesh tiles (each
+    /// gzipped on its own), the issue's standard-format baseline.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quantized_mesh: Option<WireSummary>,
 }
 
 impl Flown {
@@ -161,6 +174,7 @@ impl Flown {
             server_us_median: cost.update_us_median,
             client_us_median: cost.client_us_median,
             desyncs,
+            quantized_mesh: None,
         }
     }
 }
@@ -250,10 +264,14 @@ fn fly(
                 px_every: o.px_every,
                 poses: o.poses,
                 cross_checks: false,
+                quantized_mesh: spec == StreamSpec::BASELINE,
                 ..Default::default()
             };
             let r = tiles::fly(dem, flight, &opts)?;
-            Flown::of(tau, &r.px, &r.wire, r.triangles_median, &r.cost, r.desyncs)
+            Flown {
+                quantized_mesh: r.quantized_mesh,
+                ..Flown::of(tau, &r.px, &r.wire, r.triangles_median, &r.cost, r.desyncs)
+            }
         }
     })
 }
@@ -443,6 +461,18 @@ pub fn markdown(r: &CompareReport) -> String {
             b.client_us_median,
             b.desyncs
         ));
+        if let Some(q) = &b.quantized_mesh {
+            s.push_str(&format!(
+                "| quantized-mesh (the same tiles) | {:.3} | {:.3} | {} | {} | {:.0} | {:.0} | {:.0} | | | |\n",
+                b.tau,
+                b.p99_px,
+                q.bytes_total,
+                q.gzip_bytes_total,
+                q.gzip_bytes_per_s_mean,
+                q.gzip_bytes_per_s_p99,
+                b.triangles_median,
+            ));
+        }
     }
     if let Some(v) = r.vertex_over_baseline {
         s.push_str(&format!(
@@ -455,11 +485,19 @@ pub fn markdown(r: &CompareReport) -> String {
     for st in &r.streams {
         let mut pts: Vec<&Tuned> = std::iter::once(&st.at_target).chain(&st.curve).collect();
         pts.sort_by(|a, b| a.best.p99_px.total_cmp(&b.best.p99_px));
-        for t in pts {
+        for t in &pts {
             s.push_str(&format!(
                 "| {} | {:.3} | {} |\n",
                 st.stream, t.best.p99_px, t.best.gzip_bytes_total
             ));
+        }
+        for t in &pts {
+            if let Some(q) = &t.best.quantized_mesh {
+                s.push_str(&format!(
+                    "| quantized-mesh ({} tiles) | {:.3} | {} |\n",
+                    st.stream, t.best.p99_px, q.gzip_bytes_total
+                ));
+            }
         }
     }
     s
@@ -469,19 +507,23 @@ pub fn markdown(r: &CompareReport) -> String {
 /// axes logarithmic, as SVG.
 pub fn svg(r: &CompareReport) -> String {
     let (w, h, ml, mr, mt, mb) = (760.0, 460.0, 80.0, 220.0, 40.0, 50.0);
-    let pts: Vec<(String, Vec<(f64, f64)>)> = r
-        .streams
-        .iter()
-        .map(|st| {
-            let mut v: Vec<(f64, f64)> = std::iter::once(&st.at_target)
-                .chain(&st.curve)
-                .map(|t| (t.best.p99_px, t.best.gzip_bytes_total as f64))
-                .filter(|p| p.0 > 0.0 && p.1 > 0.0)
-                .collect();
-            v.sort_by(|a, b| a.0.total_cmp(&b.0));
-            (st.stream.clone(), v)
-        })
-        .collect();
+    let series = |st: &StreamResult, bytes: &dyn Fn(&Flown) -> Option<u64>| {
+        let mut v: Vec<(f64, f64)> = std::iter::once(&st.at_target)
+            .chain(&st.curve)
+            .filter_map(|t| Some((t.best.p99_px, bytes(&t.best)? as f64)))
+            .filter(|p| p.0 > 0.0 && p.1 > 0.0)
+            .collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        v
+    };
+    let mut pts: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+    for st in &r.streams {
+        pts.push((st.stream.clone(), series(st, &|f| Some(f.gzip_bytes_total))));
+        let qm = series(st, &|f| f.quantized_mesh.map(|q| q.gzip_bytes_total));
+        if !qm.is_empty() {
+            pts.push(("quantized-mesh".into(), qm));
+        }
+    }
     let all = pts.iter().flat_map(|p| p.1.iter());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
     for &(x, y) in all {
@@ -495,7 +537,7 @@ pub fn svg(r: &CompareReport) -> String {
     let px = |x: f64| ml + (x.log10() - lx0) / (lx1 - lx0) * (w - ml - mr);
     let py = |y: f64| h - mb - (y.log10() - ly0) / (ly1 - ly0) * (h - mt - mb);
     let colours = [
-        "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b",
+        "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#7f7f7f",
     ];
     let mut s = format!(
         "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n\
@@ -599,6 +641,7 @@ mod tests {
                 "tiles/grid+skirts",
                 "tiles/grid+patches",
                 "tiles/rqt+skirts",
+                "tiles/rqt+patches",
                 "tiles/tin+shared-borders"
             ]
         );

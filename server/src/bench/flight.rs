@@ -243,6 +243,12 @@ impl WireBytes {
         self.frames.push((msg.len() as u64, gzip_len(msg) as u64));
     }
 
+    /// Adds the next frame's bytes, raw and gzipped, when they are not one message (tiles over
+    /// HTTP, each gzipped on its own).
+    pub fn push_sizes(&mut self, raw: u64, gzip: u64) {
+        self.frames.push((raw, gzip));
+    }
+
     /// The totals, and the rates in bins of `hz` frames (one second of the path).
     pub fn summary(&self, hz: usize) -> WireSummary {
         let total = |k: fn(&(u64, u64)) -> u64| self.frames.iter().map(k).sum::<u64>();

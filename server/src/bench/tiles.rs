@@ -16,6 +16,7 @@
 use super::flight::{CostSummary, Flight, PxAccum, PxSummary, WireBytes, WireSummary, gzip_len};
 use super::stats::{mean, median, quantile};
 use crate::dem::Dem;
+use crate::formats::quantized_mesh::{self, QmExtensions, QmMesh};
 use crate::lod::measure::Projector;
 use crate::lod::tile::TileEngine;
 use crate::lod::tile::bits::TileBits;
@@ -28,7 +29,7 @@ use relief_proto::path::{PATH_HZ, PathKind};
 use relief_proto::tile::body::MeshKind;
 use relief_proto::tile::delta::put_varint;
 use relief_proto::tile::geometry::{Surface, tile_triangles};
-use relief_proto::tile::mirror::TileMirror;
+use relief_proto::tile::mirror::{TileData, TileMirror};
 use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::view::{Lens, ViewState};
 use serde::Serialize;
@@ -56,6 +57,9 @@ pub struct TileBenchOptions {
     /// Also select from scratch every pose and measure the pops (their costs and figures);
     /// `bench compare` leaves them out, as they change none of its figures.
     pub cross_checks: bool,
+    /// Also encode every tile sent as Cesium quantized-mesh ([`quantized_mesh_of`]) and
+    /// report those bytes ([`TileBenchReport::quantized_mesh`]).
+    pub quantized_mesh: bool,
     /// Show progress on stderr.
     pub progress: bool,
 }
@@ -72,6 +76,7 @@ impl Default for TileBenchOptions {
             px_min_samples: 4_000_000,
             poses: None,
             cross_checks: true,
+            quantized_mesh: false,
             progress: false,
         }
     }
@@ -153,6 +158,10 @@ pub struct TileBenchReport {
     /// Bytes over the whole path, raw and gzipped (each message), with their rates.
     #[serde(flatten)]
     pub wire: WireSummary,
+    /// With [`TileBenchOptions::quantized_mesh`]: the same tiles, each sent as a Cesium
+    /// quantized-mesh tile (gzipped on its own, as a tile server sends it), frame by frame.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quantized_mesh: Option<WireSummary>,
     /// Largest vertex jump at a tile switch, pixels.
     pub pop_px_max: f64,
     /// 99th percentile over switches of each switch's largest jump, pixels.
@@ -196,6 +205,7 @@ struct Accum {
     gzip_bytes: Vec<f64>,
     path_bytes: u64,
     wire: WireBytes,
+    qm: WireBytes,
     pops: Vec<f64>,
     morphed_pops: Vec<f64>,
     session_bytes: Vec<f64>,
@@ -285,6 +295,19 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
         }
         let client_us = t0.elapsed().as_secs_f64() * 1e6;
         r.wire.push(&msg);
+        if opts.quantized_mesh {
+            let (raw, gz) = u
+                .delta
+                .added
+                .iter()
+                .filter(|a| a.body.is_some())
+                .filter_map(|a| mirror.tile(a.tile))
+                .filter_map(|t| quantized_mesh_of(t, geom.z_quantum))
+                .fold((0, 0), |(raw, gz), b| {
+                    (raw + b.len() as u64, gz + gzip_len(&b) as u64)
+                });
+            r.qm.push_sizes(raw, gz);
+        }
         if f == 0 {
             first_bytes = msg.len() as u64;
         } else {
@@ -392,6 +415,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
         initial_delta_bytes: first_bytes,
         delta_bytes_per_s_mean: r.path_bytes as f64 / seconds,
         wire: r.wire.summary(PATH_HZ as usize),
+        quantized_mesh: opts.quantized_mesh.then(|| r.qm.summary(PATH_HZ as usize)),
         pop_px_max: quantile(&r.pops, 1.0),
         pop_px_p99: quantile(&r.pops, 0.99),
         pop_px_median: median(&r.pops),
@@ -402,6 +426,31 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
         build_tiles_s: flight.built.tiles_s,
         store_bytes: flight.built.bytes,
     })
+}
+
+/// Tile `t` as a Cesium quantized-mesh tile (no extensions): the same vertices and triangles,
+/// heights in metres, the samples placed on a nominal geographic grid of 1e-4 degrees a sample
+/// (quantized-mesh positions are relative to the tile's bounds, so the bytes do not depend on
+/// where the tile lies). What a Cesium client of the same tiles receives.
+pub fn quantized_mesh_of(t: &TileData, z_quantum: f32) -> Option<Vec<u8>> {
+    const DEG: f64 = 1e-4;
+    let s = &t.span;
+    let mesh = QmMesh {
+        west: f64::from(s.cols.0) * DEG,
+        east: f64::from(s.cols.1) * DEG,
+        // Rows run south.
+        north: -f64::from(s.rows.0) * DEG,
+        south: -f64::from(s.rows.1) * DEG,
+        vertices: (0..t.z.len() as u32)
+            .map(|v| {
+                let (c, r) = t.vertex_pos(v);
+                let z = f64::from(t.z[v as usize]) * f64::from(z_quantum);
+                [f64::from(c) * DEG, -f64::from(r) * DEG, z]
+            })
+            .collect(),
+        triangles: t.triangles(),
+    };
+    quantized_mesh::encode(&mesh, &QmExtensions::default()).ok()
 }
 
 /// The active tiles' surface triangles in world metres (patches and skirts are vertical and

@@ -21,8 +21,10 @@ use std::io::Write;
 
 /// File magic: the first eight bytes of every store.
 pub const MAGIC: &[u8; 8] = b"RELIEFST";
-/// The format version this build writes and reads. 3: quad-adjacent node records; 4: a fine
-/// tile's raised patches also close the segments its vertex lies exactly on (T-junctions).
+/// The format version this build writes and reads. 3: quad-adjacent node records. 4 (issue 13
+/// and 15): a grid tile's raised patches also close T-junctions (a fine vertex exactly on the
+/// coarse edge), and an `rqt` pyramid's patch blobs hold its crack curtains (version 3 left them
+/// empty), so a version-3 store is refused with a call to rebuild it.
 pub const VERSION: u32 = 4;
 /// Header size in bytes.
 pub const HEADER_LEN: usize = 256;

@@ -103,6 +103,12 @@ fn corrupt_stores_are_refused() {
     let e = expect_err(&bad, &ver);
     assert!(matches!(e, StoreError::Version { found: 9, .. }), "{e}");
     assert!(e.to_string().contains("rebuild"));
+    // Issue 13: a version-3 store (rqt tiles without crack curtains) is refused the same way.
+    let mut v3 = good.clone();
+    v3[8..12].copy_from_slice(&3u32.to_le_bytes());
+    let e = expect_err(&bad, &v3);
+    assert!(matches!(e, StoreError::Version { found: 3, .. }), "{e}");
+    assert!(e.to_string().contains("rebuild"), "{e}");
 
     let e = Store::open(&dir.path().join("missing.relief"))
         .err()

@@ -2,8 +2,8 @@
 //! its crack-patch blob, its honest geometric error and its height bounds.
 //!
 //! - **Mesh**: `grid` (every lattice vertex), `rqt` or `tin` ([`crate::lod::tile::mesh::pyramid`]
-//!   chooses the vertices, [`relief_proto::tile::body`] packs them). Adaptive stores carry no
-//!   crack patches: `tin` tiles share their border points, `rqt` tiles hang skirts.
+//!   chooses the vertices, [`relief_proto::tile::body`] packs them). `tin` tiles carry no
+//!   crack patches (they share their border points).
 //! - **Geometric error**: the largest vertical distance, metres, between the tile's mesh and
 //!   every full-resolution sample it covers (the original heights, before quantisation), then
 //!   saturated up the pyramid (a tile's error is at least each child's), so that a selection by
@@ -11,16 +11,24 @@
 //! - **Bounds**: the lowest and highest sample the tile covers, quanta (rounded outward), for
 //!   the box its screen error is measured to.
 //! - **Patches**: paper 001, section 2.2, steps 1-4 for dropped cracks plus the raised ones
-//!   ([`relief_proto::tile::body`] explains why), found from the samples and packed.
+//!   ([`relief_proto::tile::body`] explains why), found from the samples and packed; for `rqt`
+//!   tiles, crack curtains down to every neighbour a selection may put across each side
+//!   ([`crate::lod::tile::mesh::curtain`]), taken from every tile's mesh and packed in the
+//!   patch slot ([`relief_proto::tile::body::curtain`]; store format 4).
 //!
 //! Voids need nothing here: they were filled smoothly before the build, as for the vertex tree.
 
 use crate::lod::tile::mesh::HeightGrid;
-use crate::lod::tile::mesh::pyramid::{Tolerances, irregular_error, mesh_tile};
+use crate::lod::tile::mesh::curtain::{
+    Polyline, SideCurtain, across, fan, side_curtain, side_polyline,
+};
+use crate::lod::tile::mesh::pyramid::{PyramidMesh, Tolerances, irregular_error, mesh_tile};
 use bytemuck::{Pod, Zeroable};
+use relief_proto::tile::body::curtain::encode_curtains;
 use relief_proto::tile::body::{
     MeshKind, Patches, encode_patches, find_patches, grid_height, skirt_triangle_count,
 };
+use relief_proto::tile::{EDGES, Edge};
 use relief_proto::tile::{TileId, TileShape};
 
 /// One tile's entry in the store's `tiles` section (32 bytes, little-endian).
@@ -110,6 +118,33 @@ pub fn build_pyramid(
     let mut records = vec![TileRecord::default(); n];
     let mut data = Vec::new();
     let mut done = 0usize;
+    // Every tile's mesh first: an `rqt` tile's curtains depend on its neighbours' borders.
+    let meshes: Vec<PyramidMesh> = (0..n as u32)
+        .map(|i| {
+            mesh_tile(
+                kind,
+                shape,
+                shape.tile(i).unwrap_or(TileId::ROOT),
+                &zq,
+                &quantised,
+                &tol,
+            )
+        })
+        .collect();
+    let side = |t: TileId, e: Edge| -> Polyline {
+        let m = &meshes[shape.index(t) as usize];
+        let span = shape.span(t);
+        side_polyline(&span, e, m.z.len(), |v| {
+            let p = match &m.irregular {
+                None => {
+                    let (c, r) = span.vertex_pos(v as u32);
+                    [c, r]
+                }
+                Some(irr) => [span.cols.0 + irr.at[v][0], span.rows.0 + irr.at[v][1]],
+            };
+            (p, m.z[v])
+        })
+    };
     // Finest level first, so that children's errors are known when parents saturate.
     for level in (0..=shape.depth()).rev() {
         let (nx, ny) = shape.level_dims(level);
@@ -117,7 +152,8 @@ pub fn build_pyramid(
             for x in 0..nx {
                 let t = TileId { level, x, y };
                 let i = shape.index(t) as usize;
-                let m = mesh_tile(kind, shape, t, &zq, &quantised, &tol);
+                let m = &meshes[i];
+                let mut curtain_tris = 0usize;
                 let (mut err, patches, pblob) = match &m.irregular {
                     None => {
                         let patches = if kind == MeshKind::Grid {
@@ -129,13 +165,38 @@ pub fn build_pyramid(
                         let pblob = encode_patches(shape, t, &m.z, &patches);
                         (grid_err[i], patches, pblob)
                     }
-                    Some(irr) => (
-                        irregular_error(shape, t, irr, &m.z, quantum, &orig),
-                        Patches::default(),
-                        Vec::new(),
-                    ),
+                    Some(irr) => {
+                        let err = irregular_error(shape, t, irr, &m.z, quantum, &orig);
+                        if kind == MeshKind::Rqt {
+                            // Curtains on every side with a neighbour.
+                            let sides: Vec<(Polyline, SideCurtain)> = EDGES
+                                .into_iter()
+                                .filter(|&e| shape.neighbour(t, e).is_some())
+                                .map(|e| {
+                                    let own = side(t, e);
+                                    let others: Vec<Polyline> = across(shape, t, e)
+                                        .into_iter()
+                                        .map(|(n, b)| side(n, b))
+                                        .collect();
+                                    let c = side_curtain(&own, &others);
+                                    (own, c)
+                                })
+                                .collect();
+                            curtain_tris = sides
+                                .iter()
+                                .flat_map(|(own, segs)| {
+                                    segs.iter().enumerate().filter_map(move |(s, b)| {
+                                        b.as_ref().map(|b| fan(own, s, b).len())
+                                    })
+                                })
+                                .sum();
+                            (err, Patches::default(), encode_curtains(&sides))
+                        } else {
+                            (err, Patches::default(), Vec::new())
+                        }
+                    }
                 };
-                let mesh = m.blob;
+                let mesh = m.blob.clone();
                 for c in shape.children(t) {
                     err = err.max(records[shape.index(c) as usize].error);
                 }
@@ -146,7 +207,7 @@ pub fn build_pyramid(
                     error: err,
                     zmin: bounds[i].0,
                     zmax: bounds[i].1,
-                    patch_tris: patches.triangle_count() as u32,
+                    patch_tris: (patches.triangle_count() + curtain_tris) as u32,
                 };
                 data.extend_from_slice(&mesh);
                 data.extend_from_slice(&pblob);
@@ -226,6 +287,50 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Issue 13, `rqt+patches`: every `rqt` tile's curtain blob decodes as a client decodes it
+    /// (against the decoded mesh alone) to as many triangles as the store counted, over the
+    /// tile's own border vertices and points on its sides; tiles with a neighbour have some.
+    #[test]
+    fn rqt_curtain_blobs_decode_to_the_counted_triangles() {
+        use relief_proto::tile::body::curtain::{CurtainPoint, decode_tile_curtains};
+        let (w, h) = (129u32, 129u32);
+        let heights: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (c, r) = ((i % w) as f32, (i / w) as f32);
+                (c * 0.31).sin() * 35.0 + (r * 0.17).cos() * 22.0 + ((c * r) * 0.011).sin() * 7.0
+            })
+            .collect();
+        let shape = TileShape::new(w, h, 16).unwrap();
+        let p = build_pyramid(&shape, &heights, 0.1, MeshKind::Rqt, |_| {});
+        let mut total = 0;
+        for i in 0..shape.tile_count() {
+            let t = shape.tile(i).unwrap();
+            let r = p.records[i as usize];
+            let data = &p.data[r.offset as usize..];
+            let (mesh, blob) = data.split_at(r.mesh_len as usize);
+            let span = shape.span(t);
+            let m = decode_mesh(&span, mesh).unwrap();
+            let irr = m.irregular.as_ref().unwrap();
+            let tris =
+                decode_tile_curtains(&shape, t, irr, &m.z, &blob[..r.patch_len as usize]).unwrap();
+            assert_eq!(tris.len(), r.patch_tris as usize, "{t:?}");
+            let on_side = |(c, r): (u32, u32)| {
+                c == span.cols.0 || c == span.cols.1 || r == span.rows.0 || r == span.rows.1
+            };
+            for p in tris.iter().flatten() {
+                match *p {
+                    CurtainPoint::Vertex(v) => {
+                        let a = irr.at[v as usize];
+                        assert!(on_side((span.cols.0 + a[0], span.rows.0 + a[1])));
+                    }
+                    CurtainPoint::Below { at, .. } => assert!(on_side(at), "{t:?} {at:?}"),
+                }
+            }
+            total += tris.len();
+        }
+        assert!(total > 0);
     }
 
     #[test]

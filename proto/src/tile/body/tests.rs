@@ -167,6 +167,34 @@ proptest! {
         }
     }
 
+    /// Curtain blobs (issue 13) decoded against a real `rqt` mesh: junk gives an error or
+    /// triangles over the tile's vertices and points on its sides, never a panic.
+    #[test]
+    fn random_curtain_blobs_never_panic(seed in any::<u64>(), p_active in 0u64..100,
+        bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
+        let size = 33;
+        let shape = TileShape::new(size, size, 8).unwrap();
+        let d = dem(size, size, seed, 1000);
+        for i in 0..shape.tile_count() {
+            let tile = shape.tile(i).unwrap();
+            let sp = shape.span(tile);
+            let hash = |p: [u32; 2]| (u64::from(p[0]) * 7919 + u64::from(p[1]) * 104_729 + seed) % 100;
+            let (_, mesh, z) = rqt_case(&shape, tile, &d, |p| hash(p) < p_active).unwrap();
+            prop_assert!(curtain::decode_tile_curtains(&shape, tile, &mesh, &z[1..], &bytes).is_err());
+            if let Ok(tris) = curtain::decode_tile_curtains(&shape, tile, &mesh, &z, &bytes) {
+                for p in tris.iter().flatten() {
+                    match *p {
+                        curtain::CurtainPoint::Vertex(v) => prop_assert!((v as usize) < z.len()),
+                        curtain::CurtainPoint::Below { at: (c, r), .. } => prop_assert!(
+                            (c == sp.cols.0 || c == sp.cols.1) && (sp.rows.0..=sp.rows.1).contains(&r)
+                                || (r == sp.rows.0 || r == sp.rows.1) && (sp.cols.0..=sp.cols.1).contains(&c)
+                        ),
+                    }
+                }
+            }
+        }
+    }
+
     /// Paper 001's rule, checked against the geometry: wherever a tile meets a neighbour's child
     /// (one level finer), every finer vertex has exactly one patch, the triangle from the coarse
     /// segment to it: the coarse tile's below the segment, the fine tile's on or above it.

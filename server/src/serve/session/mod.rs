@@ -35,10 +35,7 @@ use futures_util::{Sink, SinkExt, Stream};
 use io::{Ended, fail, receive, send};
 use relief_proto::close::CloseReason;
 use relief_proto::cut::Cut;
-use relief_proto::msg::{
-    ClientMsg, CrackMode, Hello, PROTOCOL_VERSION, ServerMsg, StreamKind, Welcome,
-};
-use relief_proto::tile::body::MeshKind;
+use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, ServerMsg, StreamKind, Welcome};
 use std::error::Error as StdError;
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -140,15 +137,6 @@ async fn open<'a>(
     check_version(hello.version)?;
     validate::params(&hello.lens, hello.tau, hello.budget)
         .map_err(|e| (CloseReason::BadParams, e))?;
-    if let StreamKind::Tiles(tp) = hello.kind
-        && tp.crack == CrackMode::Patches
-        && terrain.store.tile_mesh() == MeshKind::Rqt
-    {
-        return fail(
-            CloseReason::BadParams,
-            "this terrain's rqt tiles carry no crack patches: ask for skirts".to_string(),
-        );
-    }
     if let Some(r) = &hello.resume
         && r.terrain_id != terrain.info.id
     {

@@ -19,6 +19,7 @@
 //! - [`pyramid`]: one tile of the store's pyramid meshed by kind, at its level's tolerance.
 
 pub mod borders;
+pub mod curtain;
 mod delaunay;
 pub mod fractal;
 pub mod pyramid;
