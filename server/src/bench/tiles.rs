@@ -29,7 +29,7 @@ use relief_proto::path::{PATH_HZ, PathKind};
 use relief_proto::tile::body::MeshKind;
 use relief_proto::tile::delta::put_varint;
 use relief_proto::tile::geometry::{Surface, tile_triangles};
-use relief_proto::tile::mirror::{TileData, TileMirror};
+use relief_proto::tile::mirror::{TileChanges, TileData, TileMirror};
 use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::view::{Lens, ViewState};
 use serde::Serialize;
@@ -116,6 +116,8 @@ pub struct TileBenchReport {
     pub px: PxSummary,
     /// Deltas whose digest did not match the mirror's set.
     pub desyncs: u64,
+    /// Messages beyond one per pose: deltas over `MAX_DELTA_BODY` go out in parts.
+    pub extra_parts: u64,
     /// Server and client time per pose.
     #[serde(flatten)]
     pub cost: CostSummary,
@@ -201,6 +203,7 @@ struct Accum {
     plain_ok: u64,
     violations: u64,
     desyncs: u64,
+    parts: u64,
     tile_bytes: Vec<f64>,
     gzip_bytes: Vec<f64>,
     path_bytes: u64,
@@ -251,18 +254,86 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
     let bar = super::progress_bar(opts.progress, flight.cams.len() as u64, "flying");
     for (f, cam) in flight.cams.iter().enumerate() {
         let view = ViewState::new(cam, &lens);
-        let t0 = Instant::now();
-        let u = session.update(&engine, &view, usize::MAX);
-        let msg = codec::encode(&ServerMsg::Delta(SessionDelta {
-            pose_seq: f as u64 + 1,
-            complete: u.complete,
-            delta: WireDelta {
-                seq: f as u64 + 1,
-                digest: u.digest,
-                body: u.delta.encode(),
-            },
-        }));
-        let update_us = t0.elapsed().as_secs_f64() * 1e6;
+        // A delta over MAX_DELTA_BODY goes out in parts, as the server sends it: one frame's
+        // bytes and times are those of all its parts.
+        let (mut update_us, mut client_us) = (0.0, 0.0);
+        let (mut raw, mut gz) = (0u64, 0u64);
+        let mut qm = (0u64, 0u64);
+        let mut changes = TileChanges::default();
+        let mut desync = false;
+        let u = loop {
+            let t0 = Instant::now();
+            let u = session.update(&engine, &view, usize::MAX);
+            let msg = codec::encode(&ServerMsg::Delta(SessionDelta {
+                pose_seq: f as u64 + 1,
+                complete: u.complete,
+                delta: WireDelta {
+                    seq: f as u64 + 1,
+                    digest: u.digest,
+                    body: u.delta.encode(),
+                },
+            }));
+            update_us += t0.elapsed().as_secs_f64() * 1e6;
+
+            let t0 = Instant::now();
+            let applied = match codec::decode::<ServerMsg>(&msg, codec::HARD_LIMIT)? {
+                ServerMsg::Delta(d) => mirror.apply(&d.delta),
+                other => anyhow::bail!("expected a delta, got {other:?}"),
+            };
+            match applied {
+                Ok(c) => {
+                    changes.removed.extend(c.removed);
+                    changes.added.extend(c.added);
+                }
+                Err(e) => {
+                    r.desyncs += 1;
+                    tracing::warn!("frame {f}: {e}");
+                    desync = true;
+                    break u;
+                }
+            }
+            for a in &u.delta.added {
+                if a.body.is_some()
+                    && let Some(t) = mirror.tile(a.tile)
+                {
+                    let skirt =
+                        (opts.crack == CrackMode::Skirts).then(|| info.skirt_height(t.tile.level));
+                    std::hint::black_box(tile_triangles(&geom.frame, geom.z_quantum, t, skirt));
+                }
+            }
+            client_us += t0.elapsed().as_secs_f64() * 1e6;
+            raw += msg.len() as u64;
+            gz += gzip_len(&msg) as u64;
+            if opts.quantized_mesh {
+                for b in u
+                    .delta
+                    .added
+                    .iter()
+                    .filter(|a| a.body.is_some())
+                    .filter_map(|a| mirror.tile(a.tile))
+                    .filter_map(|t| quantized_mesh_of(t, geom.z_quantum))
+                {
+                    qm.0 += b.len() as u64;
+                    qm.1 += gzip_len(&b) as u64;
+                }
+            }
+            for a in u.delta.added.iter().filter_map(|a| a.body.as_ref()) {
+                let mut body = Vec::with_capacity(a.mesh.len() + a.patches.len() + 8);
+                put_varint(&mut body, a.mesh.len() as u32);
+                put_varint(&mut body, a.patches.len() as u32);
+                body.extend_from_slice(&a.mesh);
+                body.extend_from_slice(&a.patches);
+                r.tile_bytes.push(body.len() as f64);
+                r.gzip_bytes.push(gzip_len(&body) as f64);
+            }
+            if u.complete {
+                break u;
+            }
+            r.parts += 1;
+        };
+        if desync {
+            continue;
+        }
 
         let t0 = Instant::now();
         if opts.cross_checks {
@@ -270,60 +341,17 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
             std::hint::black_box(scratch.stats.forced);
         }
         let scratch_us = t0.elapsed().as_secs_f64() * 1e6;
-
-        let t0 = Instant::now();
-        let applied = match codec::decode::<ServerMsg>(&msg, codec::HARD_LIMIT)? {
-            ServerMsg::Delta(d) => mirror.apply(&d.delta),
-            other => anyhow::bail!("expected a delta, got {other:?}"),
-        };
-        let changes = match applied {
-            Ok(c) => c,
-            Err(e) => {
-                r.desyncs += 1;
-                tracing::warn!("frame {f}: {e}");
-                continue;
-            }
-        };
-        for a in &u.delta.added {
-            if a.body.is_some()
-                && let Some(t) = mirror.tile(a.tile)
-            {
-                let skirt =
-                    (opts.crack == CrackMode::Skirts).then(|| info.skirt_height(t.tile.level));
-                std::hint::black_box(tile_triangles(&geom.frame, geom.z_quantum, t, skirt));
-            }
-        }
-        let client_us = t0.elapsed().as_secs_f64() * 1e6;
-        r.wire.push(&msg);
+        r.wire.push_sizes(raw, gz);
         if opts.quantized_mesh {
-            let (raw, gz) = u
-                .delta
-                .added
-                .iter()
-                .filter(|a| a.body.is_some())
-                .filter_map(|a| mirror.tile(a.tile))
-                .filter_map(|t| quantized_mesh_of(t, geom.z_quantum))
-                .fold((0, 0), |(raw, gz), b| {
-                    (raw + b.len() as u64, gz + gzip_len(&b) as u64)
-                });
-            r.qm.push_sizes(raw, gz);
+            r.qm.push_sizes(qm.0, qm.1);
         }
         if f == 0 {
-            first_bytes = msg.len() as u64;
+            first_bytes = raw;
         } else {
             r.update_us.push(update_us);
             r.scratch_us.push(scratch_us);
             r.client_us.push(client_us);
-            r.path_bytes += msg.len() as u64;
-        }
-        for a in u.delta.added.iter().filter_map(|a| a.body.as_ref()) {
-            let mut body = Vec::with_capacity(a.mesh.len() + a.patches.len() + 8);
-            put_varint(&mut body, a.mesh.len() as u32);
-            put_varint(&mut body, a.patches.len() as u32);
-            body.extend_from_slice(&a.mesh);
-            body.extend_from_slice(&a.patches);
-            r.tile_bytes.push(body.len() as f64);
-            r.gzip_bytes.push(gzip_len(&body) as f64);
+            r.path_bytes += raw;
         }
 
         let active = mirror.active();
@@ -394,6 +422,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &TileBenchOptions) -> anyhow::Resul
         full_res_triangles: 2 * (w as u64 - 1) * (h as u64 - 1),
         px: r.px.summary(flight),
         desyncs: r.desyncs,
+        extra_parts: r.parts,
         cost: CostSummary::of(&r.update_us, &r.scratch_us, &r.client_us),
         tiles_active_median: median(&r.active),
         tiles_visited_median: median(&r.visited),

@@ -12,6 +12,11 @@
 //! each only once its parent and its neighbours' parents are split, so that every delta leaves a
 //! restricted selection that covers the terrain once. It stops at the allowance (but always
 //! makes one split of progress) and says whether the target was reached.
+//!
+//! **Parts.** An unbudgeted delta whose bodies would pass [`MAX_DELTA_BODY`] is budgeted at that
+//! size, so that it goes out in parts, each a restricted selection, and every message stays
+//! under the protocol's 16 MiB limit (`docs/protocol.md` section 2.3). A first view of a fine
+//! `tin` mesh at a small tau reaches 19 MB on synthetic:4097.
 
 use super::TileEngine;
 use super::bits::TileBits;
@@ -23,6 +28,9 @@ use relief_proto::tile::snapshot::restriction_violations;
 use relief_proto::tile::{EDGES, TileId};
 use relief_proto::view::ViewState;
 use std::collections::BinaryHeap;
+
+/// Largest body an update's delta carries where it can, bytes (see "Parts" above).
+pub const MAX_DELTA_BODY: usize = 4 << 20;
 
 /// One tile session.
 #[derive(Clone, Debug)]
@@ -39,6 +47,8 @@ pub struct TileSession {
     tau: f32,
     /// Merge below `tau * merge_ratio`.
     merge_ratio: f32,
+    /// Largest body a delta carries where it can ([`MAX_DELTA_BODY`]).
+    max_body: usize,
 }
 
 /// One update's outcome.
@@ -88,7 +98,15 @@ impl TileSession {
             crack: params.crack,
             tau,
             merge_ratio,
+            max_body: MAX_DELTA_BODY,
         }
+    }
+
+    /// The same session with deltas in parts of at most `bytes` (tests; the server keeps
+    /// [`MAX_DELTA_BODY`]).
+    pub fn with_max_body(mut self, bytes: usize) -> TileSession {
+        self.max_body = bytes;
+        self
     }
 
     /// A session resumed from the client's active set (from its snapshot: it covers the
@@ -171,11 +189,15 @@ impl TileSession {
         view: &ViewState,
         allowance: usize,
     ) -> TileUpdate {
-        let budgeted = allowance != usize::MAX;
-        let sel = engine.select(view, self.tau, self.merge_ratio, &self.split, budgeted);
+        let mut budgeted = allowance < self.max_body;
+        let mut sel = engine.select(view, self.tau, self.merge_ratio, &self.split, budgeted);
+        if !budgeted && self.target_cost(engine, &sel.split) > self.max_body {
+            budgeted = true;
+            sel = engine.select(view, self.tau, self.merge_ratio, &self.split, true);
+        }
         let stats = sel.stats;
         let (split, complete) = if budgeted {
-            self.budgeted(engine, &sel, allowance)
+            self.budgeted(engine, &sel, allowance.min(self.max_body))
         } else {
             (sel.split, true)
         };
@@ -186,6 +208,15 @@ impl TileSession {
             complete,
             stats,
         }
+    }
+
+    /// Wire bytes of the tiles that moving to split set `split` adds.
+    fn target_cost(&self, engine: &TileEngine<'_>, split: &TileBits) -> usize {
+        engine
+            .active_of(split)
+            .minus(&self.active)
+            .map(|t| self.cost(engine, t))
+            .sum()
     }
 
     /// Moves the client to split set `split`: the delta, with bodies for what it lacks.
@@ -229,11 +260,7 @@ impl TileSession {
         let shape = engine.shape();
         let target = &sel.split;
         let mut p = self.split.and(target);
-        let mut spent: usize = engine
-            .active_of(&p)
-            .minus(&self.active)
-            .map(|t| self.cost(engine, t))
-            .sum();
+        let mut spent = self.target_cost(engine, &p);
         let eligible = |p: &TileBits, t: TileId| {
             let i = shape.index(t);
             target.contains(i)

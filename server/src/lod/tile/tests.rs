@@ -86,6 +86,50 @@ proptest! {
 }
 
 #[test]
+fn an_unbudgeted_delta_over_the_largest_body_goes_out_in_parts() {
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (200, 160);
+    let st = store(dir.path(), w, h, 11);
+    let engine = TileEngine::new(&st);
+    let p = params(u32::MAX, CrackMode::Patches);
+    let view = ViewState::new(&camera(w, h, (0.5, 0.5, 0.0, 0.3, 0.9)), &lens());
+    let mut whole = TileSession::new(engine.shape().tile_count(), p, 0.5, 0.9);
+    let one = whole.update(&engine, &view, usize::MAX);
+    assert!(one.complete);
+    let one_len = one.delta.encode().len();
+    let cap = one_len / 6;
+    let mut parted = TileSession::new(engine.shape().tile_count(), p, 0.5, 0.9).with_max_body(cap);
+    let mut mirror = TileMirror::new(engine.shape().clone(), p);
+    let mut parts = 0;
+    for seq in 1..100 {
+        let u = parted.update(&engine, &view, usize::MAX);
+        let body = u.delta.encode();
+        // A part passes the cap by at most the one split it always makes.
+        assert!(
+            body.len() < cap * 2,
+            "a part of {} bytes against {cap}",
+            body.len()
+        );
+        let wire = WireDelta {
+            seq,
+            digest: u.digest,
+            body,
+        };
+        mirror.apply(&wire).unwrap();
+        assert_eq!(restriction_violations(engine.shape(), &mirror.active()), 0);
+        parts += 1;
+        if u.complete {
+            break;
+        }
+    }
+    assert!(
+        parts >= 4,
+        "{parts} parts for {one_len} bytes at {cap} a part"
+    );
+    assert_eq!(mirror.active(), whole.active());
+}
+
+#[test]
 fn tiles_are_sent_once_and_then_come_from_the_cache() {
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (120, 90);

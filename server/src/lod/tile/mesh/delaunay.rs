@@ -13,6 +13,9 @@
 
 use super::area2;
 
+mod remove;
+pub use remove::Removal;
+
 /// No half-edge: the twin of a border edge.
 pub const NONE: u32 = u32::MAX;
 
@@ -329,5 +332,45 @@ mod tests {
             d.locate([4, 3]).is_none(),
             "a vertex is not a place to insert"
         );
+    }
+
+    #[test]
+    fn removing_vertices_keeps_a_delaunay_mesh_and_border_vertices_stay() {
+        // A dense, degenerate set (many cocircular quadruples on the lattice), then removals
+        // in a scrambled order until only the corners and the border points are left.
+        let mut d = Triangulation::rectangle(13, 11);
+        for k in 0..200u32 {
+            let p = [(k * 7919) % 13, (k * 104_729 / 13) % 11];
+            if let Some(t) = d.locate(p) {
+                d.insert(p, t);
+            }
+        }
+        check(&d);
+        let mut plan = Removal::default();
+        let mut k = 0u32;
+        loop {
+            let mut out = d.out_edges();
+            let n = d.points.len() as u32;
+            let interior = |p: [u32; 2]| p[0] % 12 != 0 && p[1] % 10 != 0;
+            let Some(v) = (0..n)
+                .map(|i| (i + k * 31) % n)
+                .find(|&v| interior(d.points[v as usize]))
+            else {
+                break;
+            };
+            k += 1;
+            assert!(d.plan_removal(out[v as usize], &mut plan), "vertex {v}");
+            let before = d.len();
+            d.remove(&plan, &mut out);
+            d.compact();
+            check(&d);
+            assert_eq!(d.len(), before - 2);
+            assert_eq!(d.out_edges().iter().filter(|&&e| e == NONE).count(), 0);
+        }
+        // A border vertex's star is open: it cannot be planned away.
+        let out = d.out_edges();
+        let b = d.points.iter().position(|&p| p == [0, 5]).unwrap();
+        assert!(!d.plan_removal(out[b], &mut plan));
+        assert!(k > 50, "{k} removals");
     }
 }
