@@ -351,7 +351,7 @@ mod tests {
         loop {
             let mut out = d.out_edges();
             let n = d.points.len() as u32;
-            let interior = |p: [u32; 2]| p[0] % 12 != 0 && p[1] % 10 != 0;
+            let interior = |p: [u32; 2]| !p[0].is_multiple_of(12) && !p[1].is_multiple_of(10);
             let Some(v) = (0..n)
                 .map(|i| (i + k * 31) % n)
                 .find(|&v| interior(d.points[v as usize]))
