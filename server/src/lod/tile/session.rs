@@ -189,19 +189,28 @@ impl TileSession {
         view: &ViewState,
         allowance: usize,
     ) -> TileUpdate {
-        let mut budgeted = allowance < self.max_body;
-        let mut sel = engine.select(view, self.tau, self.merge_ratio, &self.split, budgeted);
-        if !budgeted && self.target_cost(engine, &sel.split) > self.max_body {
-            budgeted = true;
-            sel = engine.select(view, self.tau, self.merge_ratio, &self.split, true);
-        }
-        let stats = sel.stats;
-        let (split, complete) = if budgeted {
-            self.budgeted(engine, &sel, allowance.min(self.max_body))
+        let budgeted = allowance < self.max_body;
+        let sel = engine.select(view, self.tau, self.merge_ratio, &self.split, budgeted);
+        let (sel, active) = if budgeted {
+            (sel, None)
         } else {
-            (sel.split, true)
+            // The unbudgeted target's active set serves both the size check and the delta.
+            let active = engine.active_of(&sel.split);
+            if self.added_cost(engine, &active) <= self.max_body {
+                (sel, Some(active))
+            } else {
+                let sel = engine.select(view, self.tau, self.merge_ratio, &self.split, true);
+                (sel, None)
+            }
         };
-        let delta = self.advance(engine, split);
+        let stats = sel.stats;
+        let (delta, complete) = match active {
+            Some(active) => (self.advance_to(engine, sel.split, active), true),
+            None => {
+                let (split, complete) = self.budgeted(engine, &sel, allowance.min(self.max_body));
+                (self.advance(engine, split), complete)
+            }
+        };
         TileUpdate {
             delta,
             digest: self.cache.digest(),
@@ -210,10 +219,9 @@ impl TileSession {
         }
     }
 
-    /// Wire bytes of the tiles that moving to split set `split` adds.
-    fn target_cost(&self, engine: &TileEngine<'_>, split: &TileBits) -> usize {
-        engine
-            .active_of(split)
+    /// Wire bytes of the tiles that moving to active set `active` adds.
+    fn added_cost(&self, engine: &TileEngine<'_>, active: &TileBits) -> usize {
+        active
             .minus(&self.active)
             .map(|t| self.cost(engine, t))
             .sum()
@@ -222,6 +230,11 @@ impl TileSession {
     /// Moves the client to split set `split`: the delta, with bodies for what it lacks.
     pub fn advance(&mut self, engine: &TileEngine<'_>, split: TileBits) -> TileDelta {
         let new = engine.active_of(&split);
+        self.advance_to(engine, split, new)
+    }
+
+    /// [`TileSession::advance`] with the split set's active set `new` already known.
+    fn advance_to(&mut self, engine: &TileEngine<'_>, split: TileBits, new: TileBits) -> TileDelta {
         let removed: Vec<u32> = self.active.minus(&new).collect();
         let added_ids: Vec<u32> = new.minus(&self.active).collect();
         let added: Vec<AddedTile> = added_ids
@@ -260,7 +273,7 @@ impl TileSession {
         let shape = engine.shape();
         let target = &sel.split;
         let mut p = self.split.and(target);
-        let mut spent = self.target_cost(engine, &p);
+        let mut spent = self.added_cost(engine, &engine.active_of(&p));
         let eligible = |p: &TileBits, t: TileId| {
             let i = shape.index(t);
             target.contains(i)
