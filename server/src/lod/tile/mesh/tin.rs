@@ -29,7 +29,7 @@
 //! untouched. Over 40 sets of crops of four real DEMs (`server/tools/pydelatin_compare.py`,
 //! `docs/tin.md`) this leaves 11 % fewer triangles than pydelatin (hmm's greedy insertion) at
 //! the same tolerance, fewer in every set (without it: 0.3 % fewer, but more in 6 of 40), for
-//! 1.3x the greedy time. A second and third pass would remove another 1.8 % for 1.45x more
+//! 1.3x the time without it. A second and third pass would remove another 1.8 % for 1.45x more
 //! time.
 //!
 //! **Cost.** Each triangle's worst sample sits in an indexed max-heap (`queue`; an
