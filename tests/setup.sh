@@ -17,8 +17,10 @@ apt-get install -y mesa-vulkan-drivers make chromium haproxy musl-tools python3-
 command -v node >/dev/null || apt-get install -y nodejs npm
 npm ci --prefix web
 bash web/build-wasm.sh --check
-if [ ! -x target/deploy-venv/bin/kubernetes-validate ]; then
-    python3 -m venv target/deploy-venv
+# A venv moved or copied with its target directory keeps the old paths in its scripts: rebuild
+# one whose validator does not start.
+if ! target/deploy-venv/bin/kubernetes-validate --version >/dev/null 2>&1; then
+    python3 -m venv --clear target/deploy-venv
     target/deploy-venv/bin/pip install --quiet --requirement deploy/requirements.txt
 fi
 rustup target add x86_64-unknown-linux-musl
