@@ -26,7 +26,13 @@ impl BitWriter {
         if n == 0 {
             return;
         }
-        self.pending = (self.pending << n) | (value as u64 & ((1u64 << n) - 1));
+        self.push_bits(value as u64 & ((1u64 << n) - 1), n);
+    }
+
+    /// Appends the `n` bits of `bits` (n <= 56: `pending` holds under 8 between calls) and
+    /// moves every whole byte out.
+    fn push_bits(&mut self, bits: u64, n: u32) {
+        self.pending = (self.pending << n) | bits;
         self.pending_len += n;
         while self.pending_len >= 8 {
             self.pending_len -= 8;
@@ -40,6 +46,12 @@ impl BitWriter {
         let v = value + (1u64 << k);
         let bits = 64 - v.leading_zeros();
         let prefix = bits - 1 - k;
+        let len = prefix + bits;
+        if len <= 56 {
+            // Prefix and value in one go: the prefix is `v`'s leading zeros.
+            self.push_bits(v, len);
+            return;
+        }
         for _ in 0..prefix {
             self.put(0, 1);
         }
@@ -87,23 +99,50 @@ impl<'a> BitReader<'a> {
         self.bytes.len() as u64 * 8 - self.pos
     }
 
+    /// The next 64 bits, most significant first, zeros past the end: at least 57 of them are
+    /// the input's wherever the input has them.
+    #[inline]
+    fn peek64(&self) -> u64 {
+        let at = (self.pos >> 3) as usize;
+        let word = match self.bytes.get(at..at + 8) {
+            Some(w) => <[u8; 8]>::try_from(w).unwrap_or_default(),
+            None => {
+                // The last few bytes.
+                let mut word = [0u8; 8];
+                let tail = self.bytes.get(at..).unwrap_or(&[]);
+                let n = tail.len().min(8);
+                word[..n].copy_from_slice(&tail[..n]);
+                word
+            }
+        };
+        u64::from_be_bytes(word) << (self.pos & 7)
+    }
+
     /// Reads `n` bits (n <= 32).
     pub fn get(&mut self, n: u32) -> Option<u32> {
         if n as u64 > self.remaining() {
             return None;
         }
-        let mut v = 0u32;
-        for _ in 0..n {
-            let byte = self.bytes[(self.pos >> 3) as usize];
-            let bit = (byte >> (7 - (self.pos & 7))) & 1;
-            v = (v << 1) | bit as u32;
-            self.pos += 1;
+        if n == 0 {
+            return Some(0);
         }
+        let v = (self.peek64() >> (64 - n)) as u32;
+        self.pos += n as u64;
         Some(v)
     }
 
     /// Reads an order-`k` Exp-Golomb code; `None` past the end or beyond 62 bits.
     pub fn get_eg(&mut self, k: u32) -> Option<u64> {
+        // A code that lies whole in the next 57 bits is read from one word: its zeros are the
+        // word's leading zeros, and the code is its top `2 prefix + k + 1` bits.
+        let word = self.peek64();
+        let prefix = word.leading_zeros();
+        let len = 2 * prefix + k + 1;
+        if len <= 57 && len as u64 <= self.remaining() {
+            self.pos += len as u64;
+            return Some((word >> (64 - len)) - (1u64 << k));
+        }
+        // Long codes, and codes that would run past the end: bit by bit.
         let mut prefix = 0;
         while self.get(1)? == 0 {
             prefix += 1;
@@ -157,6 +196,45 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// The reader as it was, one bit at a time: the reference for the word reads.
+    struct SlowReader<'a> {
+        bytes: &'a [u8],
+        pos: u64,
+    }
+
+    impl SlowReader<'_> {
+        fn get(&mut self, n: u32) -> Option<u32> {
+            if n as u64 > self.bytes.len() as u64 * 8 - self.pos {
+                return None;
+            }
+            let mut v = 0u32;
+            for _ in 0..n {
+                let byte = self.bytes[(self.pos >> 3) as usize];
+                v = (v << 1) | ((byte >> (7 - (self.pos & 7))) & 1) as u32;
+                self.pos += 1;
+            }
+            Some(v)
+        }
+
+        fn get_eg(&mut self, k: u32) -> Option<u64> {
+            let mut prefix = 0;
+            while self.get(1)? == 0 {
+                prefix += 1;
+                if prefix + k > 62 {
+                    return None;
+                }
+            }
+            let mut v = 1u64;
+            let mut left = prefix + k;
+            while left > 0 {
+                let n = left.min(32);
+                v = (v << n) | self.get(n)? as u64;
+                left -= n;
+            }
+            Some(v - (1u64 << k))
+        }
+    }
+
     proptest! {
         #[test]
         fn codes_round_trip(vals in proptest::collection::vec((any::<i32>(), 0u32..12), 0..50)) {
@@ -174,6 +252,44 @@ mod tests {
             w.put_eg(v, k);
             let n = w.finish().len() as u64;
             prop_assert_eq!(n, eg_len(v, k).div_ceil(8));
+        }
+
+        #[test]
+        fn word_reads_match_bit_by_bit_reads(
+            bytes in proptest::collection::vec(any::<u8>(), 0..40),
+            ks in proptest::collection::vec(0u32..24, 1..40),
+            skew in 0u32..8,
+        ) {
+            // Mostly zero bytes make long prefixes, so codes straddle the 57-bit window and
+            // the input's end; `skew` starts the reads at every offset within a byte.
+            let bytes: Vec<u8> = bytes.iter().map(|&b| if b < 160 { 0 } else { b }).collect();
+            let mut fast = BitReader::new(&bytes);
+            let mut slow = SlowReader { bytes: &bytes, pos: 0 };
+            prop_assert_eq!(fast.get(skew), slow.get(skew));
+            for &k in ks.iter().cycle().take(200) {
+                let (a, b) = (fast.get_eg(k), slow.get_eg(k));
+                prop_assert_eq!(a, b);
+                if a.is_none() {
+                    break;
+                }
+                prop_assert_eq!(fast.pos, slow.pos);
+                prop_assert_eq!(fast.get(k % 33), slow.get(k % 33));
+            }
+        }
+
+        #[test]
+        fn long_codes_round_trip(v in any::<u64>(), k in 0u32..8, lead in 0u32..8) {
+            // Values of up to 62 bits: codes longer than one word.
+            let v = v >> (2 + k);
+            let mut w = BitWriter::new();
+            w.put(0, lead);
+            w.put_eg(v, k);
+            w.put_eg(v >> 20, k);
+            let bytes = w.finish();
+            let mut r = BitReader::new(&bytes);
+            prop_assert_eq!(r.get(lead), Some(0));
+            prop_assert_eq!(r.get_eg(k), Some(v));
+            prop_assert_eq!(r.get_eg(k), Some(v >> 20));
         }
 
         #[test]

@@ -79,6 +79,12 @@ impl Cut {
         self.interior.tag(node)
     }
 
+    /// The tag of `node` when it is interior (see [`Cut::tag`]), `None` when it is not.
+    #[inline]
+    pub fn interior_tag(&self, node: NodeId) -> Option<u8> {
+        self.interior.member_tag(node)
+    }
+
     /// Sets the tag of interior node `node` in a [`Cut::tagged`] cut (its low four bits).
     #[inline]
     pub fn set_tag(&mut self, node: NodeId, tag: u8) {

@@ -49,6 +49,16 @@ const fn compact4(m: u32) -> u32 {
     (m & 1) | ((m >> 1) & 2) | ((m >> 2) & 4) | ((m >> 3) & 8)
 }
 
+/// Pushes `v` onto `vec`, growing it by an eighth when full instead of doubling it: a set's
+/// tables hold its peak in pages, and doubling would let a quarter to a half of that be unused
+/// capacity. Still amortised constant time.
+fn push_lean<T>(vec: &mut Vec<T>, v: T) {
+    if vec.len() == vec.capacity() {
+        vec.reserve_exact(vec.len() / 8 + 4);
+    }
+    vec.push(v);
+}
+
 /// One level's directory of superpages.
 #[derive(Clone, Debug, Default)]
 struct Level {
@@ -199,6 +209,23 @@ impl NodeSet {
         self.pages[page][(bit >> 6) as usize] >> (bit & 63) & 1 != 0
     }
 
+    /// The tag of `node` when it is in the set (0 for an untagged set), from one look-up.
+    #[inline]
+    pub fn member_tag(&self, node: NodeId) -> Option<u8> {
+        if self.supers.is_empty() {
+            return None;
+        }
+        let (page, bit) = self.locate(node);
+        if self.pages[page][(bit >> 6) as usize] >> (bit & 63) & 1 == 0 {
+            return None;
+        }
+        Some(if self.tagged {
+            self.tags[page][(bit >> 1) as usize] >> ((bit & 1) * 4) & 15
+        } else {
+            0
+        })
+    }
+
     /// Which of `node`'s children are in the set: bit `k` for child `k`.
     #[inline]
     pub fn children_mask(&self, node: NodeId) -> u8 {
@@ -214,12 +241,12 @@ impl NodeSet {
     pub fn insert(&mut self, shape: &TreeShape, node: NodeId) -> bool {
         if self.supers.is_empty() {
             // The sentinels.
-            self.supers.push([0; SUPER_PAGES]);
-            self.super_live.push(0);
-            self.pages.push([0; 4]);
-            self.page_live.push(0);
+            push_lean(&mut self.supers, [0; SUPER_PAGES]);
+            push_lean(&mut self.super_live, 0);
+            push_lean(&mut self.pages, [0; 4]);
+            push_lean(&mut self.page_live, 0);
             if self.tagged {
-                self.tags.push([0; 128]);
+                push_lean(&mut self.tags, [0; 128]);
             }
         }
         let l = node.level as usize;
@@ -245,8 +272,8 @@ impl NodeSet {
             sup = match self.free_supers.pop() {
                 Some(s) => s,
                 None => {
-                    self.supers.push([0; SUPER_PAGES]);
-                    self.super_live.push(0);
+                    push_lean(&mut self.supers, [0; SUPER_PAGES]);
+                    push_lean(&mut self.super_live, 0);
                     self.supers.len() as u32 - 1
                 }
             };
@@ -258,10 +285,10 @@ impl NodeSet {
             page = match self.free_pages.pop() {
                 Some(s) => s,
                 None => {
-                    self.pages.push([0; 4]);
-                    self.page_live.push(0);
+                    push_lean(&mut self.pages, [0; 4]);
+                    push_lean(&mut self.page_live, 0);
                     if self.tagged {
-                        self.tags.push([0; 128]);
+                        push_lean(&mut self.tags, [0; 128]);
                     }
                     self.pages.len() as u32 - 1
                 }

@@ -195,17 +195,21 @@ impl ViewState {
     /// four children of a node are evaluated together.
     #[inline]
     pub fn box_views4(&self, b: &[Aabb; 4]) -> [BoxView; 4] {
-        let lanes = |f: &dyn Fn(usize) -> f32| -> [f32; 4] { std::array::from_fn(f) };
+        // Generic, not `&dyn Fn`: the lanes must inline to vectorise, whatever the caller.
+        #[inline(always)]
+        fn lanes(f: impl Fn(usize) -> f32) -> [f32; 4] {
+            std::array::from_fn(f)
+        }
         let (e, f) = (self.eye, self.forward);
         let lo = [
-            lanes(&|i| b[i].min.x - e.x),
-            lanes(&|i| b[i].min.y - e.y),
-            lanes(&|i| b[i].min.z - e.z),
+            lanes(|i| b[i].min.x - e.x),
+            lanes(|i| b[i].min.y - e.y),
+            lanes(|i| b[i].min.z - e.z),
         ];
         let hi = [
-            lanes(&|i| b[i].max.x - e.x),
-            lanes(&|i| b[i].max.y - e.y),
-            lanes(&|i| b[i].max.z - e.z),
+            lanes(|i| b[i].max.x - e.x),
+            lanes(|i| b[i].max.y - e.y),
+            lanes(|i| b[i].max.z - e.z),
         ];
         let mut margin = [f32::INFINITY; 4];
         for (k, n) in self.planes.iter().enumerate() {
@@ -220,7 +224,7 @@ impl ViewState {
         // The nearest corner along the view axis: the minimum where forward is >= 0.
         let near = |a: usize, fa: f32| if fa >= 0.0 { &lo[a] } else { &hi[a] };
         let (nx, ny, nz) = (near(0, f.x), near(1, f.y), near(2, f.z));
-        let far = |a: usize| lanes(&|i| lo[a][i].abs().max(hi[a][i].abs()));
+        let far = |a: usize| lanes(|i| lo[a][i].abs().max(hi[a][i].abs()));
         let (fx, fy, fz) = (far(0), far(1), far(2));
         std::array::from_fn(|i| BoxView {
             margin: margin[i],

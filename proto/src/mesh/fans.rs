@@ -133,19 +133,26 @@ impl FanMesh {
     /// all map to active nodes at level `inner` (the node, or its children). `settled` says
     /// that every record is up to date for the cut before the block changed.
     fn refresh(&mut self, shape: &TreeShape, cut: &Cut, node: NodeId, inner: u8, settled: bool) {
-        let mut ring = std::mem::take(&mut self.ring);
-        ring.walk(shape, cut, node, inner, settled.then_some(&self.cells));
-        ring.for_each_cell(shape, |c, r, levels| self.store(c, r, levels));
-        self.ring = ring;
-    }
-
-    /// Sets cell `(c, r)` from its corners' active levels (NW, NE, SW, SE).
-    fn store(&mut self, c: u32, r: u32, levels: [u8; 4]) {
-        self.work += 1;
-        let rec = record(self.depth, c, r, levels);
-        if let Some(old) = self.cells.set(c, r, rec, self.track) {
-            self.count = self.count + triangles(rec) - triangles(old);
-        }
+        // Borrowed field by field (the ring is read while the cells change), not moved out
+        // and back: the ring is a few hundred bytes, copied twice per change.
+        let FanMesh {
+            ring,
+            cells,
+            count,
+            work,
+            track,
+            depth,
+            ..
+        } = self;
+        ring.walk(shape, cut, node, inner, settled.then_some(&*cells));
+        ring.for_each_cell(shape, |c, r, levels| {
+            // Cell (c, r) from its corners' active levels (NW, NE, SW, SE).
+            *work += 1;
+            let rec = record(*depth, c, r, levels);
+            if let Some(old) = cells.set(c, r, rec, *track) {
+                *count = *count + triangles(rec) - triangles(old);
+            }
+        });
     }
 
     /// The triangles of cell `(c, r)` with record `rec`.

@@ -15,14 +15,20 @@
 //!   beyond the wheel's horizon (14 buckets, 0.875 of the band's bound) is cut to it (the group
 //!   is then examined once per turn, which is conservative; on fuji_srtm3 no more groups were
 //!   examined than with a horizon of four bounds, and small sessions hold a quarter of the
-//!   bucket headers). Buckets are `Vec`s that keep up to their share of the wheel's entries when
-//!   drained, so filing seldom allocates once the session has warmed up and a burst does not
-//!   hold memory; draining a band touches only the buckets the odometer passed.
-//! - **Entries.** One `u64`: the node packed in 32 bits (level, row, column; inner nodes fit), the
-//!   due reading in units of 1/256 bucket (low 24 bits, compared with wrapping arithmetic, rounded
-//!   down), and the generation the node had when filed. A node filed again gets a new generation,
-//!   so its older entry is recognised as stale when drained (the generation lives in the cut's
-//!   tag byte).
+//!   bucket headers). Draining a band touches only the buckets the odometer passed.
+//! - **Entries.** One `u32`: the node's index in the nominal quadtree (levels one after another,
+//!   row-major on a level's `2^l x 2^l` lattice, so the level comes back from the index's
+//!   leading zeros and the row and column from shifts), the due reading's place within its
+//!   bucket (8 bits on grids up to 2049 a side, 7 on 4097, 3 on 16385; rounded down,
+//!   so an entry is never held past its due reading, only drained up to that fraction of a bucket
+//!   early) and the generation the node had when filed (2 to 4 bits, in what is left). A node
+//!   filed again gets a new generation, so its older entry is recognised as stale when drained
+//!   (the generation lives in the cut's tag); one whose node has since been filed a multiple
+//!   of 4 (or 16) times again passes for current, which costs one early examination.
+//! - **Chunks.** A bucket is a list of 32-entry chunks taken from one pool per session, so a
+//!   session holds its entries plus a partly filled chunk per bucket, not each bucket's largest
+//!   burst; the pool keeps a sixteenth of the chunks in use between updates and gives back the
+//!   rest.
 
 use glam::Vec3;
 use relief_proto::tree::NodeId;
@@ -34,13 +40,15 @@ const BANDS: usize = 192;
 const WHEEL: u64 = 16;
 /// Buckets per band bound.
 const BUCKETS_PER_BOUND: f64 = 16.0;
-/// Key units per bucket.
+/// Key units per bucket (the finest an entry's reading within its bucket can be).
 const UNITS: u64 = 256;
 /// The largest slack a wheel holds, in buckets: a full turn less one.
 const HORIZON_BUCKETS: f64 = (WHEEL - 2) as f64;
 /// Added to the rotation's chord against rounding in the view bases (unit vectors to about
 /// 1e-7).
 const CHORD_GUARD: f64 = 1e-6;
+/// Entries per chunk.
+const CHUNK: usize = 32;
 
 /// The band of a group whose reach is `reach` metres.
 pub fn band_of(reach: f32) -> usize {
@@ -54,39 +62,106 @@ pub fn band_of(reach: f32) -> usize {
 }
 
 /// The largest reach band `b` holds, metres.
-pub fn band_bound(b: usize) -> f64 {
+pub const fn band_bound(b: usize) -> f64 {
     // 2^(b / 4) built from its exponent bits (b / 4 < 48).
     f64::from_bits((1023 + (b >> 2) as u64) << 52) * (5 + (b & 3)) as f64 / 4.0
 }
 
+/// Odometer units per metre in each band (a table: a filing would otherwise divide).
+const PER_METRE: [f64; BANDS] = {
+    let mut t = [0.0; BANDS];
+    let mut b = 0;
+    while b < BANDS {
+        t[b] = BUCKETS_PER_BOUND * UNITS as f64 / band_bound(b);
+        b += 1;
+    }
+    t
+};
+
 /// Odometer units per metre in band `b`.
 fn per_metre(b: usize) -> f64 {
-    BUCKETS_PER_BOUND * UNITS as f64 / band_bound(b)
+    PER_METRE[b]
 }
 
-/// A node packed in 32 bits: level (4 bits), row and column (14 bits each). Inner nodes fit:
-/// their level is below the tree's depth (at most 15), so their row and column are below 2^14.
-pub fn pack_node(n: NodeId) -> u32 {
-    debug_assert!(n.level < 15 && n.x < 1 << 14 && n.y < 1 << 14);
-    (n.level as u32) << 28 | n.y << 14 | n.x
+/// The number of nodes above each level in the nominal (power-of-two) quadtree:
+/// `(4^l - 1) / 3`.
+const ABOVE: [u32; 16] = {
+    let mut t = [0u32; 16];
+    let mut l = 1;
+    while l < 16 {
+        t[l] = t[l - 1] + (1 << (2 * (l - 1)));
+        l += 1;
+    }
+    t
+};
+
+/// `n`'s index in the nominal quadtree: the nodes of the levels above it, then its row and
+/// column on its level's `2^l x 2^l` lattice. An inner node of a tree of depth at most 15 fits
+/// in 29 bits.
+pub fn node_index(n: NodeId) -> u32 {
+    debug_assert!(n.level < 15 && n.x >> n.level == 0 && n.y >> n.level == 0);
+    ABOVE[n.level as usize & 15] + (n.y << n.level | n.x)
 }
 
-/// The node of [`pack_node`].
-pub fn unpack_node(v: u32) -> NodeId {
+/// The node of [`node_index`]: `3 k + 1` lies in `[4^l, 4^(l+1))`.
+pub fn index_node(k: u32) -> NodeId {
+    let t = 3 * k as u64 + 1;
+    let level = ((63 - t.leading_zeros()) / 2) as u8;
+    let m = k - ABOVE[level as usize & 15];
     NodeId {
-        level: (v >> 28) as u8,
-        x: v & 0x3FFF,
-        y: (v >> 14) & 0x3FFF,
+        level,
+        x: m & ((1 << level) - 1),
+        y: m >> level,
     }
 }
 
-/// The node and generation of an entry.
-pub fn entry_parts(e: u64) -> (NodeId, u8) {
-    (unpack_node((e >> 32) as u32), e as u8)
+/// How an entry's 32 bits are shared for a tree of a given depth: the node's index on top, then
+/// the reading within the bucket, then the generation.
+#[derive(Clone, Copy, Debug)]
+struct Packing {
+    /// Bits of generation.
+    gen_bits: u32,
+    /// Bits of the due reading within its bucket.
+    fine_bits: u32,
 }
 
-fn entry(node: NodeId, key: u64, generation: u8) -> u64 {
-    (pack_node(node) as u64) << 32 | (key & 0xFF_FFFF) << 8 | generation as u64
+impl Packing {
+    fn new(depth: u8) -> Packing {
+        // Inner nodes are at levels 0 to depth - 1.
+        let last = ABOVE[depth.min(15) as usize].saturating_sub(1);
+        let free = last.leading_zeros();
+        // The reading's bits save more examinations than generation bits beyond two do: a
+        // stale entry that matches (its node filed a multiple of 4 times since) is only
+        // examined early, while a coarse reading drains every entry of a bucket early.
+        let fine_bits = free.saturating_sub(2).min(8);
+        Packing {
+            gen_bits: (free - fine_bits).min(4),
+            fine_bits,
+        }
+    }
+
+    fn entry(&self, node: NodeId, fine: u32, generation: u8) -> u32 {
+        let low = self.fine_bits + self.gen_bits;
+        let gen_mask = (1u32 << self.gen_bits) - 1;
+        ((node_index(node) as u64) << low) as u32
+            | fine << self.gen_bits
+            | generation as u32 & gen_mask
+    }
+
+    fn parts(&self, e: u32) -> (NodeId, u8) {
+        let low = self.fine_bits + self.gen_bits;
+        let node = ((e as u64) >> low) as u32;
+        (index_node(node), (e & ((1 << self.gen_bits) - 1)) as u8)
+    }
+
+    /// The place of key `key` within its bucket, rounded down to the entry's bits.
+    fn fine_of(&self, key: u64) -> u32 {
+        ((key % UNITS) >> (8 - self.fine_bits)) as u32
+    }
+
+    fn fine(&self, e: u32) -> u32 {
+        (e >> self.gen_bits) & ((1 << self.fine_bits) - 1)
+    }
 }
 
 /// An upper bound on how far the camera's turn from basis `a` to basis `b` moves a point at
@@ -103,11 +178,100 @@ pub fn chord(a: &[Vec3; 3], b: &[Vec3; 3]) -> f64 {
     (moved / 2.0).sqrt() + CHORD_GUARD
 }
 
+/// A list of boxed chunks: a chunk moves between buckets and the pool as a pointer, never
+/// copied.
+type Chunks = Vec<Box<[u32; CHUNK]>>;
+
+/// Chunks not in use, shared by a session's buckets.
+#[derive(Default)]
+struct Pool {
+    free: Chunks,
+    /// Chunks held by buckets.
+    used: usize,
+}
+
+impl Pool {
+    fn take(&mut self) -> Box<[u32; CHUNK]> {
+        self.used += 1;
+        self.free.pop().unwrap_or_else(|| Box::new([0; CHUNK]))
+    }
+
+    fn give(&mut self, c: Box<[u32; CHUNK]>) {
+        self.used -= 1;
+        self.free.push(c);
+    }
+
+    /// Gives back to the allocator what is beyond a sixteenth of the chunks in use.
+    fn trim(&mut self) {
+        let keep = 8 + self.used / 16;
+        if self.free.len() > keep {
+            self.free.truncate(keep);
+            if self.free.capacity() > 4 * keep {
+                self.free.shrink_to(keep);
+            }
+        }
+    }
+}
+
+/// One bucket: a list of chunks, all full but the last.
+#[derive(Default)]
+struct Bucket {
+    chunks: Chunks,
+    len: usize,
+}
+
+impl Bucket {
+    fn push(&mut self, e: u32, pool: &mut Pool) {
+        let i = self.len % CHUNK;
+        if i == 0 {
+            self.chunks.push(pool.take());
+        }
+        if let Some(c) = self.chunks.last_mut() {
+            c[i] = e;
+        }
+        self.len += 1;
+    }
+
+    /// Moves every entry into `out`.
+    fn drain(&mut self, out: &mut Vec<u32>, pool: &mut Pool) {
+        let mut left = self.len;
+        for c in self.chunks.drain(..) {
+            out.extend_from_slice(&c[..left.min(CHUNK)]);
+            left = left.saturating_sub(CHUNK);
+            pool.give(c);
+        }
+        self.len = 0;
+        if self.chunks.capacity() > 64 {
+            self.chunks.shrink_to(8);
+        }
+    }
+
+    /// Moves the entries for which `due` holds into `out`, keeping the others in order.
+    fn drain_due(&mut self, out: &mut Vec<u32>, pool: &mut Pool, due: impl Fn(u32) -> bool) {
+        let mut kept = 0;
+        for i in 0..self.len {
+            let e = self.chunks[i / CHUNK][i % CHUNK];
+            if due(e) {
+                out.push(e);
+            } else {
+                self.chunks[kept / CHUNK][kept % CHUNK] = e;
+                kept += 1;
+            }
+        }
+        self.len = kept;
+        while self.chunks.len() > kept.div_ceil(CHUNK) {
+            if let Some(c) = self.chunks.pop() {
+                pool.give(c);
+            }
+        }
+    }
+}
+
 /// One band's wheel.
 #[derive(Default)]
 struct Wheel {
     /// `WHEEL` buckets once the band is first used; bucket `b mod WHEEL` holds absolute bucket `b`.
-    buckets: Vec<Vec<u64>>,
+    buckets: Vec<Bucket>,
     /// The absolute bucket of the odometer at the last drain.
     cursor: u64,
     /// Entries held.
@@ -118,6 +282,10 @@ struct Wheel {
 pub struct Schedule {
     /// Per band up to the highest one used.
     wheels: Vec<Wheel>,
+    /// The chunks the buckets are made of.
+    pool: Pool,
+    /// How entries are packed for this tree.
+    packing: Packing,
     /// Metres the eye travelled since the session began.
     travel: f64,
     /// Sum of the rotations' chords since the session began: band `b`'s odometer is
@@ -126,30 +294,33 @@ pub struct Schedule {
     /// The previous update's eye and view basis.
     previous: Option<(Vec3, [Vec3; 3])>,
     /// Entries due at the next update whatever the motion.
-    next: Vec<u64>,
+    next: Vec<u32>,
 }
 
-impl Default for Schedule {
-    fn default() -> Self {
+impl Schedule {
+    /// An empty schedule for a tree of depth `depth`.
+    pub fn new(depth: u8) -> Schedule {
         Schedule {
             wheels: Vec::new(),
+            pool: Pool::default(),
+            packing: Packing::new(depth),
             travel: 0.0,
             turn: 0.0,
             previous: None,
             next: Vec::new(),
         }
     }
-}
 
-impl Schedule {
     /// Band `b`'s odometer: metres of camera-relative motion of a point `band_bound(b)` from
     /// the eye since the session began.
     fn odometer(&self, b: usize) -> f64 {
         self.travel + band_bound(b) * self.turn
     }
 
-    /// Advances the odometers by the camera's motion since the last call.
+    /// Advances the odometers by the camera's motion since the last call, and gives back the
+    /// chunks the last update freed beyond the pool's share.
     pub fn advance(&mut self, view: &ViewState) {
+        self.pool.trim();
         let eye = view.eye();
         let basis = view.basis();
         if let Some((pe, pb)) = self.previous {
@@ -160,28 +331,47 @@ impl Schedule {
         self.previous = Some((eye, basis));
     }
 
+    /// The node and generation of entry `e`.
+    pub fn entry_parts(&self, e: u32) -> (NodeId, u8) {
+        self.packing.parts(e)
+    }
+
+    /// What of tag `tag` an entry keeps as its generation.
+    pub fn generation(&self, tag: u8) -> u8 {
+        tag & ((1 << self.packing.gen_bits) - 1) as u8
+    }
+
     /// Files `node` with generation `generation`: due once its band's odometer has advanced by
     /// `slack` metres. `reach` bounds the distance from the eye of what the group checks.
     pub fn file(&mut self, node: NodeId, generation: u8, slack: f64, reach: f64) {
         let band = band_of((reach + slack) as f32);
         let per_metre = per_metre(band);
         let slack_units = (slack * per_metre).min(HORIZON_BUCKETS * UNITS as f64);
-        let key = (self.odometer(band) * per_metre + slack_units) as u64;
+        let reading = self.odometer(band) * per_metre;
+        let key = (reading + slack_units) as u64;
         if self.wheels.len() <= band {
             self.wheels.resize_with(band + 1, Wheel::default);
         }
         let wheel = &mut self.wheels[band];
         if wheel.buckets.is_empty() {
-            wheel.buckets = (0..WHEEL).map(|_| Vec::new()).collect();
+            wheel.buckets = (0..WHEEL).map(|_| Bucket::default()).collect();
+            // A band taken up again starts at its odometer, as a drain would leave it.
+            wheel.cursor = wheel.cursor.max(reading as u64 / UNITS);
         }
-        let bucket = (key / UNITS).max(wheel.cursor);
-        wheel.buckets[(bucket % WHEEL) as usize].push(entry(node, key, generation));
+        // Already due (the band's cursor is past its bucket): due at the cursor's first drain.
+        let (bucket, fine) = if key / UNITS < wheel.cursor {
+            (wheel.cursor, 0)
+        } else {
+            (key / UNITS, self.packing.fine_of(key))
+        };
+        let e = self.packing.entry(node, fine, generation);
+        wheel.buckets[(bucket % WHEEL) as usize].push(e, &mut self.pool);
         wheel.live += 1;
     }
 
     /// Files `node` with generation `generation` as due at the next update.
     pub fn file_next(&mut self, node: NodeId, generation: u8) {
-        self.next.push(entry(node, 0, generation));
+        self.next.push(self.packing.entry(node, 0, generation));
     }
 
     /// Number of bands in use, for [`Schedule::drain_band`].
@@ -191,7 +381,7 @@ impl Schedule {
 
     /// Moves the entries filed for the next update into `out`; the caller checks each against
     /// the node's current generation.
-    pub fn drain_next(&mut self, out: &mut Vec<u64>) {
+    pub fn drain_next(&mut self, out: &mut Vec<u32>) {
         out.append(&mut self.next);
         if self.next.capacity() > 256 {
             self.next.shrink_to(64);
@@ -200,65 +390,58 @@ impl Schedule {
 
     /// Moves band `band`'s due entries into `out`; the caller checks each against the node's
     /// current generation. Entries filed meanwhile into a band not yet drained may come out in
-    /// the same update if already due: examining a group early is only extra work.
-    pub fn drain_band(&mut self, band: usize, out: &mut Vec<u64>) {
+    /// the same update if already due, and an entry in the odometer's own bucket may come out
+    /// up to its reading's rounding early: examining a group early is only extra work.
+    pub fn drain_band(&mut self, band: usize, out: &mut Vec<u32>) {
         let now = (self.odometer(band) * per_metre(band)) as u64;
+        let packing = self.packing;
         let wheel = &mut self.wheels[band];
-        {
-            let target = now / UNITS;
-            if wheel.live == 0 {
-                wheel.cursor = target;
-                return;
+        let target = now / UNITS;
+        if wheel.live == 0 {
+            wheel.cursor = target;
+            return;
+        }
+        let first = wheel.cursor;
+        let last = target.min(first + WHEEL - 1);
+        let now_fine = packing.fine_of(now);
+        for b in first..=last {
+            let bucket = &mut wheel.buckets[(b % WHEEL) as usize];
+            let before = bucket.len;
+            if b < target || target >= first + WHEEL {
+                // Wholly passed: every entry is due.
+                bucket.drain(out, &mut self.pool);
+            } else {
+                // The odometer's own bucket: due entries only (an entry a whole turn ahead
+                // may come out early).
+                bucket.drain_due(out, &mut self.pool, |e| packing.fine(e) <= now_fine);
             }
-            let first = wheel.cursor;
-            let last = target.min(first + WHEEL - 1);
-            for b in first..=last {
-                let bucket = &mut wheel.buckets[(b % WHEEL) as usize];
-                if b < target || target >= first + WHEEL {
-                    // Wholly passed: every entry is due.
-                    wheel.live -= bucket.len();
-                    out.append(bucket);
-                    // Keep about a bucket's share of the wheel: a bucket that once took a burst
-                    // (the horizon's, say) must not hold its peak for ever.
-                    let keep = wheel.live / WHEEL as usize;
-                    if bucket.capacity() > keep + keep / 2 + 4 {
-                        bucket.shrink_to(keep);
-                    }
-                } else {
-                    // The odometer's own bucket: due entries only.
-                    let before = bucket.len();
-                    bucket.retain(|&e| {
-                        let key = (e >> 8) & 0xFF_FFFF;
-                        let behind = (now as u32).wrapping_sub(key as u32) & 0xFF_FFFF;
-                        if behind < 1 << 23 {
-                            out.push(e);
-                            false
-                        } else {
-                            true
-                        }
-                    });
-                    wheel.live -= before - bucket.len();
-                }
-            }
-            wheel.cursor = target.max(first);
-            if wheel.live == 0 {
-                // An empty band gives its buckets back.
-                wheel.buckets = Vec::new();
-            }
+            wheel.live -= before - bucket.len;
+        }
+        wheel.cursor = target.max(first);
+        if wheel.live == 0 {
+            // An empty band gives its buckets back.
+            wheel.buckets = Vec::new();
         }
     }
 
     /// Bytes of memory held.
     pub fn memory_bytes(&self) -> usize {
-        let wheels: usize = self
+        let headers: usize = self
             .wheels
             .iter()
             .map(|w| {
-                w.buckets.capacity() * std::mem::size_of::<Vec<u64>>()
-                    + w.buckets.iter().map(|b| b.capacity() * 8).sum::<usize>()
+                w.buckets.capacity() * std::mem::size_of::<Bucket>()
+                    + w.buckets
+                        .iter()
+                        .map(|b| b.chunks.capacity() * 8)
+                        .sum::<usize>()
             })
             .sum();
-        wheels + self.next.capacity() * 8 + self.wheels.capacity() * std::mem::size_of::<Wheel>()
+        headers
+            + (self.pool.used + self.pool.free.len()) * CHUNK * 4
+            + self.pool.free.capacity() * 8
+            + self.next.capacity() * 4
+            + self.wheels.capacity() * std::mem::size_of::<Wheel>()
     }
 }
 
@@ -308,12 +491,93 @@ mod tests {
 
     #[test]
     fn nodes_pack_and_entries_keep_their_generation() {
-        let n = NodeId {
-            level: 14,
-            x: 16383,
-            y: 9,
+        for (level, x, y) in [
+            (0, 0, 0),
+            (1, 1, 0),
+            (5, 31, 17),
+            (11, 2047, 0),
+            (14, 16383, 9),
+        ] {
+            let n = NodeId { level, x, y };
+            assert_eq!(index_node(node_index(n)), n);
+            let depth = level + 1;
+            let p = Packing::new(depth);
+            let fine = (1 << p.fine_bits) - 1;
+            let e = p.entry(n, fine, 13);
+            assert_eq!(
+                p.parts(e),
+                (n, 13 & ((1 << p.gen_bits) - 1)),
+                "depth {depth}"
+            );
+            assert_eq!(p.fine(e), fine);
+        }
+        // Bits left for the reading within a bucket, by grid side.
+        let fine = |d: u8| Packing::new(d).fine_bits;
+        assert_eq!(
+            [fine(10), fine(11), fine(12), fine(14), fine(15)],
+            [8, 8, 7, 3, 1]
+        );
+        let generation = |d: u8| Packing::new(d).gen_bits;
+        assert_eq!(
+            [
+                generation(10),
+                generation(11),
+                generation(12),
+                generation(15)
+            ],
+            [4, 3, 2, 2]
+        );
+    }
+
+    #[test]
+    fn an_entry_is_never_drained_late_nor_early_beyond_its_rounding() {
+        // The eye moves 1 m an update, without turning; groups 60 m away are filed with slacks
+        // of 0.3 to 40 m (so in a few bands).
+        use relief_proto::view::{Camera, Lens};
+        let view = |x: f32| {
+            ViewState::new(
+                &Camera {
+                    eye: Vec3::new(x, 0.0, 100.0),
+                    yaw: 0.0,
+                    pitch: -0.3,
+                },
+                &Lens::STANDARD,
+            )
         };
-        assert_eq!(unpack_node(pack_node(n)), n);
-        assert_eq!(entry_parts(entry(n, 123_456_789, 77)), (n, 77));
+        let mut s = Schedule::new(12);
+        s.advance(&view(0.0));
+        let slacks: Vec<f64> = (0..400).map(|i| 0.3 + i as f64 * 0.1).collect();
+        for (i, &slack) in slacks.iter().enumerate() {
+            let n = index_node(i as u32 + 1);
+            s.file(n, 1, slack, 60.0);
+        }
+        let mut seen = vec![false; slacks.len()];
+        let mut out = Vec::new();
+        for step in 1..=60 {
+            let travel = step as f64;
+            s.advance(&view(step as f32));
+            for b in 0..s.bands() {
+                s.drain_band(b, &mut out);
+            }
+            for e in out.drain(..) {
+                let (n, g) = s.entry_parts(e);
+                assert_eq!(g, 1);
+                let i = node_index(n) as usize - 1;
+                assert!(!seen[i], "{i} drained twice");
+                seen[i] = true;
+                // At most the reading's rounding early (1/128 of a bucket at depth 12).
+                let bound = band_bound(band_of((60.0 + slacks[i]) as f32));
+                let due = slacks[i].min(bound * HORIZON_BUCKETS / BUCKETS_PER_BOUND);
+                let rounding = bound / BUCKETS_PER_BOUND / (1u32 << s.packing.fine_bits) as f64;
+                assert!(travel >= due - rounding - 1e-6, "{i} early at {step}");
+            }
+            // Never late.
+            for (i, &slack) in slacks.iter().enumerate() {
+                if !seen[i] {
+                    assert!(travel < slack, "{i} (slack {slack}) late at {step}");
+                }
+            }
+        }
+        assert!(seen.iter().all(|&x| x));
     }
 }

@@ -24,10 +24,10 @@
 //! The schedule ([`super::schedule`]) keeps one entry per interior node whose group checks
 //! anything, in flat per-band buckets; an interior node whose children are all interior checks
 //! nothing and is filed nowhere until a child merges. State per session: the cut's interior
-//! bitset with a 4-bit generation per interior node, and the schedule's entries (8 bytes each).
+//! bitset with a 4-bit generation per interior node, and the schedule's entries (4 bytes each).
 //! Due groups are examined band by band as they come out of the wheels (no sort).
 
-use super::schedule::{Schedule, entry_parts, pack_node};
+use super::schedule::{Schedule, node_index};
 use super::{LodParams, UpdateStats, VertexEngine};
 use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;
@@ -45,7 +45,7 @@ pub struct VertexSession {
     /// When each group is due.
     schedule: Schedule,
     /// Due entries of the band being processed, reused across updates.
-    due: Vec<u64>,
+    due: Vec<u32>,
     /// Interior nodes a child of which merged in the update under way (packed): they may not
     /// merge before the next update.
     blocked: FxHashSet<u32>,
@@ -54,8 +54,8 @@ pub struct VertexSession {
     /// [`VertexSession::set_max_interior`]).
     max_interior: usize,
     /// The cut a session continues from, until its first update examines every group of it.
-    /// Scheduling each of its groups instead would cost an 8-byte entry per interior node:
-    /// 64 times the snapshot a resuming client sends, where this copy costs under one byte.
+    /// Scheduling each of its groups instead would cost a 4-byte entry per interior node:
+    /// 32 times the snapshot a resuming client sends, where this copy costs under one byte.
     resumed: Option<Cut>,
 }
 
@@ -71,7 +71,7 @@ impl VertexSession {
         let shape = &engine.geometry().shape;
         VertexSession {
             cut: cut.tagged(shape),
-            schedule: Schedule::default(),
+            schedule: Schedule::new(shape.depth()),
             due: Vec::new(),
             blocked: FxHashSet::default(),
             max_interior: usize::MAX,
@@ -110,7 +110,7 @@ impl VertexSession {
         self.cut.memory_bytes()
             + self.resumed.as_ref().map_or(0, Cut::memory_bytes)
             + self.schedule.memory_bytes()
-            + self.due.capacity() * 8
+            + self.due.capacity() * 4
             + self.blocked.capacity() * 5
             + std::mem::size_of::<Self>()
     }
@@ -166,8 +166,9 @@ impl VertexSession {
                 }
                 peak = peak.max(due.len());
                 for e in due.drain(..) {
-                    let (node, generation) = entry_parts(e);
-                    if self.cut.is_interior(shape, node) && self.cut.tag(node) == generation {
+                    let (node, generation) = self.schedule.entry_parts(e);
+                    let tag = self.cut.interior_tag(node);
+                    if tag.is_some_and(|t| self.schedule.generation(t) == generation) {
                         self.process(engine, view, p, node, &mut delta, stats);
                     }
                 }
@@ -195,7 +196,7 @@ impl VertexSession {
         let active = exists & !self.cut.interior_children(node);
         let mut slack = f64::INFINITY;
         let mut reach = 0.0f32;
-        if active == exists && self.blocked.contains(&pack_node(node)) {
+        if active == exists && self.blocked.contains(&node_index(node)) {
             // A child merged in this update: the merge check waits for the next one.
             slack = 0.0;
         } else if active == exists {
@@ -209,7 +210,7 @@ impl VertexSession {
                     // Its group gained this node's split check and maybe its own merge check:
                     // examined at the next update. Its entry stays live, since its other
                     // checks may be due in this one.
-                    self.blocked.insert(pack_node(parent));
+                    self.blocked.insert(node_index(parent));
                     self.schedule.file_next(parent, self.cut.tag(parent));
                 }
                 return;
