@@ -1,16 +1,17 @@
 //! When a session's groups are due: distance bands with odometers and timing wheels of flat,
 //! reused buckets (see [`super::session`] for what a group is and how its slack is found).
 //!
-//! - **Bands.** A group is filed in the band of its *reach* (the furthest distance from the eye of
-//!   anything it checks, plus its slack). Bands are quarter octaves: band `b` holds reaches up to
-//!   `2^(b/4) (5 + b mod 4) / 4` metres, read off the reach's float exponent and top two mantissa
-//!   bits (no libm). The band's bound overestimates a reach by at most 25 %.
+//! - **Bands.** A group is filed in the band of its *lever* (how far a unit of the rotation's
+//!   chord may move what it checks, at most the furthest distance from the eye of what it checks:
+//!   see the session's `Bounds`), or of its slack where that is larger. Bands are quarter
+//!   octaves: band `b` holds levers up to `2^(b/4) (5 + b mod 4) / 4` metres, read off the
+//!   lever's float exponent and top two mantissa bits (no libm). The band's bound overestimates a
+//!   lever by at most 25 %.
 //! - **Odometers.** Each band's odometer advances by the eye's travel plus the band's bound times
-//!   the chord of the camera's rotation, `2 sin(theta / 2)`, the most a point that far away can
-//!   move relative to the camera (from the basis vectors' moves: their squares sum to twice the
-//!   chord's square); all bands' odometers come from two running sums, the travel and the
-//!   chords. A group is due when its band's odometer
-//!   passes the reading at filing plus its slack.
+//!   the chord of the camera's rotation, `2 sin(theta / 2)` (from the basis vectors' moves: their
+//!   squares sum to twice the chord's square); all bands' odometers come from two running sums,
+//!   the travel and the chords. A group is due when its band's odometer passes the reading at
+//!   filing plus its slack.
 //! - **Wheels.** A band's wheel has 16 buckets of `bound / 16` metres of odometer each; a slack
 //!   beyond the wheel's horizon (14 buckets, 0.875 of the band's bound) is cut to it (the group
 //!   is then examined once per turn, which is conservative; on fuji_srtm3 no more groups were
@@ -341,10 +342,11 @@ impl Schedule {
         tag & ((1 << self.packing.gen_bits) - 1) as u8
     }
 
-    /// Files `node` with generation `generation`: due once its band's odometer has advanced by
-    /// `slack` metres. `reach` bounds the distance from the eye of what the group checks.
-    pub fn file(&mut self, node: NodeId, generation: u8, slack: f64, reach: f64) {
-        let band = band_of((reach + slack) as f32);
+    /// Files `node` with generation `generation`: due once the eye's travel plus `lever` times
+    /// the rotation's chords, both since now, reach `slack` metres. It goes in the band of
+    /// `lever` (or of `slack`, if larger: a wheel holds slacks up to most of its band's bound).
+    pub fn file(&mut self, node: NodeId, generation: u8, slack: f64, lever: f64) {
+        let band = band_of(lever.max(slack) as f32);
         let per_metre = per_metre(band);
         let slack_units = (slack * per_metre).min(HORIZON_BUCKETS * UNITS as f64);
         let reading = self.odometer(band) * per_metre;

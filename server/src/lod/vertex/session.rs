@@ -9,11 +9,13 @@
 //! box may move before any of those decisions can flip. The bounds are the screen-error formula's
 //! own terms ([`BoxView`]) taken at their worst over that displacement: the nearest depth shrinks
 //! or grows by at most the displacement, the horizontal reach likewise, and the frustum test's
-//! margin likewise. Camera translation moves a box by at most the eye's travel; camera rotation
-//! by angle `a` moves a point at distance `D` by at most `2 D sin(a / 2)`. So the group is filed
-//! in the band of its distance, and each band keeps an odometer that advances by the eye's travel
-//! plus the band's distance times that chord; a group is due when its band's odometer passes its
-//! key.
+//! margin likewise. Camera translation moves them by at most the eye's travel `T`. Camera rotation
+//! by angle `a` moves a point at distance `D` by at most the chord `D 2 sin(a / 2)`, which bounds
+//! the margin's move; but the depth of a point near the view axis moves much less (see
+//! `Bounds`), so a group whose slack is a depth slack has a shorter *lever* than its distance.
+//! The group is filed in the band of its lever, and each band keeps an odometer that advances by
+//! the eye's travel plus the band's lever times the chords; a group is due when its band's
+//! odometer passes its key.
 //!
 //! Due groups are examined as they come out of the schedule, in no order of depth. The full pass
 //! examines parents first, so a node whose child merged in this update may not merge before the
@@ -25,7 +27,8 @@
 //! anything, in flat per-band buckets; an interior node whose children are all interior checks
 //! nothing and is filed nowhere until a child merges. State per session: the cut's interior
 //! bitset with a 4-bit generation per interior node, and the schedule's entries (4 bytes each).
-//! Due groups are examined band by band as they come out of the wheels (no sort).
+//! Due groups are drained from every band before any is examined, then examined as they came out
+//! of the wheels (no sort).
 
 use super::schedule::{Schedule, node_index};
 use super::{LodParams, UpdateStats, VertexEngine};
@@ -140,39 +143,39 @@ impl VertexSession {
             if engine.screen_error(view, NodeId::ROOT) > p.tau {
                 self.cut.split_active(shape, NodeId::ROOT);
                 delta.splits.push(engine.split_payload(NodeId::ROOT));
-                self.process(engine, view, p, NodeId::ROOT, &mut delta, stats);
+                self.process(engine, view, p, (NodeId::ROOT, None), &mut delta, stats);
             }
         } else {
-            // Band by band, in no order of depth: a parent examined after its child merged in
-            // this update is blocked from merging (and examined again at the next update), so
+            // Everything due is drained before anything is examined, so that a group filed
+            // again during this update (its slack computed for this very pose) waits for the
+            // next pose instead of coming out of a band drained after it. Due groups are then
+            // examined in no order of depth: a parent examined after its child merged in this
+            // update is blocked from merging (and examined again at the next update), so
             // coarsening still moves one level per update, as in the paper's top-down pass.
             self.blocked.clear();
             let mut due = std::mem::take(&mut self.due);
-            let mut peak = 0;
-            for band in 0..=self.schedule.bands() {
-                if band == 0 {
-                    if let Some(start) = self.resumed.take() {
-                        // The first update: every group of the cut continued from is due,
-                        // read from the copy (the cut itself changes as they are examined).
-                        for node in start.interior_nodes() {
-                            if self.cut.is_interior(shape, node) && self.cut.tag(node) == 0 {
-                                self.process(engine, view, p, node, &mut delta, stats);
-                            }
-                        }
-                    }
-                    self.schedule.drain_next(&mut due);
-                } else {
-                    self.schedule.drain_band(band - 1, &mut due);
-                }
-                peak = peak.max(due.len());
-                for e in due.drain(..) {
-                    let (node, generation) = self.schedule.entry_parts(e);
-                    let tag = self.cut.interior_tag(node);
-                    if tag.is_some_and(|t| self.schedule.generation(t) == generation) {
-                        self.process(engine, view, p, node, &mut delta, stats);
+            self.schedule.drain_next(&mut due);
+            for band in 0..self.schedule.bands() {
+                self.schedule.drain_band(band, &mut due);
+            }
+            if let Some(start) = self.resumed.take() {
+                // The first update: every group of the cut continued from is due, read from
+                // the copy (the cut itself changes as they are examined).
+                for node in start.interior_nodes() {
+                    if self.cut.is_interior(shape, node) && self.cut.tag(node) == 0 {
+                        self.process(engine, view, p, (node, None), &mut delta, stats);
                     }
                 }
             }
+            for &e in &due {
+                let (node, generation) = self.schedule.entry_parts(e);
+                let tag = self.cut.interior_tag(node);
+                if tag.is_some_and(|t| self.schedule.generation(t) == generation) {
+                    self.process(engine, view, p, (node, None), &mut delta, stats);
+                }
+            }
+            let peak = due.len();
+            due.clear();
             trim(&mut due, peak);
             self.due = due;
         }
@@ -181,27 +184,33 @@ impl VertexSession {
         delta
     }
 
-    /// Examines the group of interior node `node` and files it again.
+    /// Examines the group of interior node `node` and files it again. `known` is the node's own
+    /// view terms and static error where the caller has them: a node it has just split, whose
+    /// merge check then needs no evaluation of its own (its error is over `tau`).
     fn process(
         &mut self,
         engine: &VertexEngine<'_>,
         view: &ViewState,
         p: &LodParams,
-        node: NodeId,
+        (node, known): (NodeId, Option<&(BoxView, f32)>),
         delta: &mut Delta,
         stats: &mut UpdateStats,
     ) {
         let shape = &engine.geometry().shape;
         let exists = engine.existing_children(node);
         let active = exists & !self.cut.interior_children(node);
-        let mut slack = f64::INFINITY;
-        let mut reach = 0.0f32;
+        let mut bounds = Bounds::default();
         if active == exists && self.blocked.contains(&node_index(node)) {
             // A child merged in this update: the merge check waits for the next one.
-            slack = 0.0;
+            bounds.due_now();
         } else if active == exists {
-            stats.visited += 1;
-            let (bv, err) = engine.box_view(view, node);
+            let (bv, err) = match known {
+                Some(&own) => own,
+                None => {
+                    stats.visited += 1;
+                    engine.box_view(view, node)
+                }
+            };
             let e = view.error_of(&bv, err);
             if e < p.tau * p.merge_ratio {
                 self.cut.merge_interior(shape, node);
@@ -215,32 +224,30 @@ impl VertexSession {
                 }
                 return;
             }
-            slack = merge_slack(view, &bv, err, p.tau * p.merge_ratio);
-            reach = bv.d_max;
+            merge_slack(view, &bv, err, p.tau * p.merge_ratio, &mut bounds);
         }
         if node.level + 1 < shape.depth() && active != 0 {
             let views = engine.children_views(view, node, active);
-            for (k, (cv, cerr)) in views.iter().enumerate() {
+            for (k, own) in views.iter().enumerate() {
                 if active >> k & 1 == 0 {
                     continue;
                 }
                 stats.visited += 1;
                 let c = node.child(k);
+                let (cv, cerr) = own;
                 if view.error_of(cv, *cerr) > p.tau && !self.at_limit() {
                     self.cut.split_active(shape, c);
                     delta.splits.push(engine.split_payload(c));
                     // Refine as deep as this pose needs, as the full pass does.
-                    self.process(engine, view, p, c, delta, stats);
+                    self.process(engine, view, p, (c, Some(own)), delta, stats);
                 } else {
-                    slack = slack.min(split_slack(view, cv, *cerr, p.tau));
-                    reach = reach.max(cv.d_max);
+                    split_slack(view, cv, *cerr, p.tau, &mut bounds);
                 }
             }
         }
         let g = self.next_generation(node);
-        if slack.is_finite() {
-            let slack = (slack * SLACK_SAFETY).max(0.0);
-            self.schedule.file(node, g, slack, reach as f64);
+        if let Some((slack, lever)) = bounds.filing() {
+            self.schedule.file(node, g, slack * SLACK_SAFETY, lever);
         }
     }
 }
@@ -253,15 +260,109 @@ fn trim<T>(v: &mut Vec<T>, len: usize) {
     }
 }
 
-/// How far a box may move relative to the camera while a node with error `err` and screen error
-/// at most `tau` stays at most `tau`.
-fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32) -> f64 {
+/// What a group's checks allow, in the two kinds of bound that camera motion is measured against
+/// (see the module docs): how far the frustum test's margin may move, and how far the depth and
+/// horizontal reach may.
+///
+/// A point's offset from the eye `v` is fixed at filing; `k` poses later its depth is
+/// `v . f_k - (e_k - e_0) . f_k`, so the depth moves by at most the eye's travel `T` plus
+/// `|v . (f_k - f_0)|`. With `c = |f_k - f_0|`, at most the running sum of the per-pose chords
+/// `K`, that is at most `|v_perp| c + |v . f_0| c^2 / 2`, where `v_perp` is `v` off the view
+/// axis: rotation moves the depth of what lies near the axis far less than the point itself.
+/// A plane's distance (the margin) has no such axis, and moves by up to `|v| K + T`.
+#[derive(Clone, Copy, Debug)]
+struct Bounds {
+    /// Margin slack (metres) and the furthest distance from the eye of a box it bounds.
+    margin: (f64, f64),
+    /// Depth and reach slack (metres).
+    depth: f64,
+    /// The furthest distance off the view axis, and along it, of a box whose depth `depth` bounds.
+    off_axis: f64,
+    along: f64,
+}
+
+impl Default for Bounds {
+    fn default() -> Bounds {
+        Bounds {
+            margin: (f64::INFINITY, 0.0),
+            depth: f64::INFINITY,
+            off_axis: 0.0,
+            along: 0.0,
+        }
+    }
+}
+
+impl Bounds {
+    /// Makes the group due at the next drain.
+    fn due_now(&mut self) {
+        self.margin.0 = 0.0;
+    }
+
+    /// A check that holds while the frustum margin of box `bv` moves less than `slack`.
+    fn margin(&mut self, slack: f64, bv: &BoxView) {
+        self.margin = (self.margin.0.min(slack), self.margin.1.max(bv.d_max as f64));
+    }
+
+    /// A check that holds while the depth and reach of box `bv` move less than `slack`.
+    fn depth(&mut self, slack: f64, bv: &BoxView) {
+        let d = bv.d_max as f64;
+        // Every point of the box is at most `d_max` from the eye and at least `depth` along the
+        // axis (when that is not negative), so at most this far off it.
+        let z = bv.depth as f64;
+        let off = if z > 0.0 {
+            (d * d - z * z).max(0.0).sqrt()
+        } else {
+            d
+        };
+        self.depth = self.depth.min(slack);
+        self.off_axis = self.off_axis.max(off);
+        self.along = self.along.max(d);
+    }
+
+    /// The slack to file the group with and the lever arm of its band: the group is due once
+    /// `T + lever K` reaches `slack`, which comes no later than either bound can be reached.
+    /// None when nothing can change.
+    ///
+    /// Until then `K < slack / lever`, so the depth's quadratic term is at most
+    /// `along K / 2 * slack / lever`; the lever solves `lever = (off_axis + along (slack / lever)
+    /// / 2) slack / depth`, the smallest that keeps the depth bound (and exact at `depth` =
+    /// `slack`). For the margin, `lever >= margin's distance * slack / margin slack` keeps it.
+    fn filing(&self) -> Option<(f64, f64)> {
+        let (m, m_reach) = self.margin;
+        let s = self.depth;
+        let slack = m.min(s).max(0.0);
+        if !slack.is_finite() {
+            return None;
+        }
+        if slack == 0.0 {
+            return Some((0.0, m_reach.max(self.along)));
+        }
+        let mut lever: f64 = 0.0;
+        if m.is_finite() {
+            lever = lever.max(m_reach * slack / m);
+        }
+        if s.is_finite() {
+            // lever^2 - (off_axis slack / s) lever - along slack^2 / (2 s) = 0, larger root.
+            let (p, q) = (
+                self.off_axis * slack / s,
+                self.along * slack * slack / (2.0 * s),
+            );
+            lever = lever.max((p + (p * p + 4.0 * q).sqrt()) / 2.0);
+        }
+        Some((slack, lever))
+    }
+}
+
+/// Bounds how far a box may move relative to the camera while a node with error `err` and screen
+/// error at most `tau` stays at most `tau`.
+fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32, bounds: &mut Bounds) {
     if err <= 0.0 {
-        return f64::INFINITY;
+        return;
     }
     if bv.margin < 0.0 {
         // Culled: nothing can change until the box reaches the frustum.
-        return -bv.margin as f64;
+        bounds.margin(-bv.margin as f64, bv);
+        return;
     }
     let near = view.near() as f64;
     let z = bv.depth as f64;
@@ -276,14 +377,14 @@ fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32) -> f64 {
     } else {
         0.0
     };
-    // Branch e <= K err c / (z - d).
+    // Branch e <= K err c / (z - d). Leaving the frustum only lowers the error.
     let s_c = z - (a * view.off_axis() as f64).max(near);
-    s_a.max(s_c).max(0.0)
+    bounds.depth(s_a.max(s_c).max(0.0), bv);
 }
 
-/// How far a box may move relative to the camera while a node with error `err` and screen error
-/// at least `tau_m` stays at least `tau_m`.
-fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32) -> f64 {
+/// Bounds how far a box may move relative to the camera while a node with error `err` and screen
+/// error at least `tau_m` stays at least `tau_m`.
+fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32, bounds: &mut Bounds) {
     let near = view.near() as f64;
     let z = (bv.depth as f64).max(near);
     let r = bv.r_max as f64;
@@ -298,5 +399,7 @@ fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32) -> f64 {
     };
     // Branch e >= K err c / (z + d).
     let s_c = b * view.off_axis() as f64 - z;
-    (bv.margin as f64).min(s_a).min(s_c).max(0.0)
+    // Leaving the frustum drops the error to 0.
+    bounds.margin((bv.margin as f64).max(0.0), bv);
+    bounds.depth(s_a.min(s_c).max(0.0), bv);
 }

@@ -279,3 +279,39 @@ proptest! {
         prop_assert!(session_visits <= full_visits);
     }
 }
+
+#[test]
+fn a_node_just_split_is_not_evaluated_again_for_its_merge_check() {
+    // Found by the property test above: on this small terrain the session examined 1,245
+    // nodes to the full pass's 1,228, since each node it split was evaluated a second time for
+    // its own merge check, when the split had just evaluated it.
+    use super::session::VertexSession;
+    let (w, h, seed, tau) = (82u32, 20u32, 9_872_809_616_889_327_660u64, 0.5f32);
+    let dir = tempfile::tempdir().unwrap();
+    let s = store(dir.path(), w, h, seed);
+    let engine = VertexEngine::new(&s);
+    let p = LodParams {
+        tau,
+        ..LodParams::default()
+    };
+    let cams = flight(w, h, seed, 60);
+    let v0 = ViewState::new(&cams[0], &lens());
+    let mut full = engine.initial_cut(&v0, &p, &mut UpdateStats::default());
+    let mut session = VertexSession::new(&engine, &v0, &p);
+    let (mut full_visits, mut session_visits, mut changes) = (0, 0, 0);
+    for (i, cam) in cams.iter().enumerate() {
+        let view = ViewState::new(cam, &lens());
+        let (mut a, mut b) = (UpdateStats::default(), UpdateStats::default());
+        let d1 = engine.update(&mut full, &view, &p, i as u64, &mut a);
+        let d2 = session.update(&engine, &view, &p, i as u64, &mut b);
+        assert_eq!(d1, d2, "update {i}");
+        changes += d1.splits.len() + d1.merges.len();
+        full_visits += a.visited;
+        session_visits += b.visited;
+    }
+    assert!(changes > 200, "{changes}");
+    assert!(
+        session_visits <= full_visits,
+        "session {session_visits} full pass {full_visits}"
+    );
+}
