@@ -9,7 +9,8 @@
 //! - [`haar`]: the integer Haar step (parent plus three details) and the static-error code.
 //! - [`view`]: cameras, frustum, screen-space error and the geomorph factor.
 //! - [`delta`]: merges and splits between two cuts, and their compact bit-packed body.
-//! - [`bits`]: the bit writer and reader with Exp-Golomb codes behind that body.
+//! - [`range`]: the adaptive binary range coder behind that body; [`bits`]: the bit writer and
+//!   reader with Exp-Golomb codes behind the tile bodies.
 //! - [`mirror`]: the client-side cut with heights, rebuilt from deltas and checked by digest.
 //! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit;
 //!   [`close`]: the reasons a session ends; [`snapshot`]: a cut in one bit per inner node.
@@ -38,6 +39,7 @@ pub mod nodeset;
 mod paged;
 pub mod path;
 pub mod query;
+pub mod range;
 pub mod rng;
 pub mod snapshot;
 pub mod terrain;

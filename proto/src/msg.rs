@@ -18,7 +18,7 @@ use crate::view::{Camera, Lens};
 
 /// The protocol version this crate speaks. A hello with another version is refused with
 /// [`CloseReason::Version`].
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// Which stream a session receives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Encode, Decode)]
@@ -389,7 +389,7 @@ mod tests {
     #[test]
     fn the_welcome_example_of_the_protocol_doc_is_what_the_code_sends() {
         let w = ServerMsg::Welcome(Welcome {
-            version: 2,
+            version: 3,
             session_id: 42,
             terrain: TerrainInfo {
                 id: 0x0123_4567_89AB_CDEF,

@@ -1,13 +1,13 @@
-//! The order-0 entropy of a run's split payloads under the delta body's own model (issue 11,
+//! The order-0 entropy of a run's split payloads under the delta body's own contexts (issue 11,
 //! "Bytes"): the benchmark's `split_entropy_bytes`.
 //!
-//! The body's Exp-Golomb coder has one adaptive choice per context: an order per level for the
-//! details, one for the error residuals and one for the split positions of each delta. An ideal
-//! coder with the same contexts would spend, per symbol, the order-0 entropy of that context's
-//! symbols over the run. [`SplitEntropy`] tallies the symbols of every split of every delta it is
-//! given and sums:
+//! The body's range coder keeps one adaptive model per context: per level and component for the
+//! details, one for the error residuals, one for the split positions' level steps and one for
+//! their values. An ideal coder with the same contexts and the whole run's statistics known in
+//! advance would spend, per symbol, the order-0 entropy of that context's symbols over the run.
+//! [`SplitEntropy`] tallies the symbols of every split of every delta it is given and sums:
 //! - **details**: zigzag-mapped, by value, with one context per level and component (`dv`, `dh`,
-//!   `dd`; the coder shares one order among the three, so this is the tighter bound);
+//!   `dd`);
 //! - **error residuals**: by value, one context;
 //! - **positions**: the level step by value, and the position value (Morton gap or code) as its
 //!   Exp-Golomb bucket (bit length of `v + 1`) plus the bits below the bucket's leading one at one
@@ -15,8 +15,10 @@
 //!   how rare each one is in this run.
 //!
 //! It is a bound on any coder of these symbols with these contexts and no other knowledge, not a
-//! coder: a body is decoded on its own, so a real coder also pays for learning its statistics in
-//! every delta.
+//! coder: a body is decoded on its own, so the real coder also pays for learning its statistics
+//! in every delta (it can beat the bound slightly on positions, whose top two bits below the
+//! leading one it models). Merges are not in it: `split_bytes_mean` counts them, so the two
+//! differ by the merges' positions too.
 
 use super::{Delta, morton, positions, predicted_code};
 use crate::bits::zigzag;

@@ -6,22 +6,28 @@
 //! [`crate::haar`]) and the node's one-byte static-error code (its screen error drives the
 //! children's geomorph and defines its bounding box, see [`crate::terrain`]).
 //!
-//! **Body layout** (a bit stream, most significant bit first; "EG(k)" is an order-k Exp-Golomb
-//! code, signed values zigzag-mapped first):
-//! 1. `n_merges`, `n_splits`: EG(0).
-//! 2. Three 4-bit code orders: merge positions, split positions, error residuals.
-//! 3. Merges, then splits, each sorted by level and then by Morton (Z-order) code within the level,
+//! **Body layout**: one stream of the adaptive binary range coder of [`crate::range`], every
+//! field an unsigned [`Value`] (signed ones zigzag-mapped first) in its own adaptive model, all
+//! models fresh for each body:
+//! 1. `n_merges`, `n_splits` (one model for both).
+//! 2. Merges, then splits, each sorted by level and then by Morton (Z-order) code within the level,
 //!    so that parents come before children and nearby nodes have nearby codes. Each node is its
-//!    level step from the previous node, EG(0), then its Morton code: if the level is unchanged,
-//!    as the gap to the previous code minus one, else as is, EG(order).
-//! 4. For each level that has splits, in order, a 4-bit order for that level's details.
-//! 5. Per split, in the same order: its three details, EG(level's order), then the error code's
-//!    residual against a prediction both ends compute from the details alone (the code of the
-//!    largest child-to-parent offset, which the node's error can never be below).
+//!    level step from the previous node, then its Morton code: if the level is unchanged, as the
+//!    gap to the previous code minus one, else as is (a step model and a position model for the
+//!    merges, another two for the splits).
+//! 3. Per split, in the same order: its three details, each in the model of its level and
+//!    component, then the error code's residual against a prediction both ends compute from the
+//!    details alone (the code of the largest child-to-parent offset, which the node's error can
+//!    never be below), in one model.
 //!
-//! All orders are chosen per delta to minimise the body. Decoding checks every index against the
-//! tree and every value against its range, and reserves room for at most [`RESERVE_MAX`] entries
-//! up front: beyond that, lists grow only as their entries decode.
+//! A delta with neither merges nor splits has the empty body (no bytes).
+//!
+//! The models learn each context's statistics as the body goes, so the body costs close to the
+//! entropy of its symbols in these contexts (issue 11, "Bytes"). Decoding checks every index
+//! against the tree and every value against its range, refuses counts beyond the tree's inner
+//! nodes, stops at the first entry that needs bytes the body does not have, and reserves room
+//! for at most [`RESERVE_MAX`] entries up front: beyond that, lists grow only as their entries
+//! decode.
 //!
 //! [`SplitEntropy`] measures what a run's split payloads carry under this coder's model, for the
 //! benchmark (issue 11, "Bytes").
@@ -30,8 +36,9 @@ mod entropy;
 
 pub use entropy::SplitEntropy;
 
-use crate::bits::{BitReader, BitWriter, best_order, zigzag};
+use crate::bits::{unzigzag, zigzag};
 use crate::haar::{error_code, inverse};
+use crate::range::{Decoder, Encoder, Value};
 use crate::tree::{NodeId, TreeShape};
 
 /// One split: an active node becomes interior and its children become active.
@@ -98,7 +105,10 @@ impl Delta {
     }
 
     /// Encodes merges and splits into the compact body. `quantum` is the terrain's z quantum.
-    pub fn pack_body(&self, _shape: &TreeShape, quantum: f32) -> Vec<u8> {
+    pub fn pack_body(&self, shape: &TreeShape, quantum: f32) -> Vec<u8> {
+        if self.is_empty() {
+            return Vec::new();
+        }
         let mut merges: Vec<(u8, u64)> =
             self.merges.iter().map(|&n| (n.level, morton(n))).collect();
         merges.sort_unstable();
@@ -108,52 +118,26 @@ impl Delta {
             .map(|s| (s.node.level, morton(s.node), s))
             .collect();
         splits.sort_unstable_by_key(|&(l, m, _)| (l, m));
-        let m_pos = positions(merges.iter().copied());
-        let s_pos = positions(splits.iter().map(|&(l, m, _)| (l, m)));
-        let residuals: Vec<u64> = splits
-            .iter()
-            .map(|(_, _, s)| zigzag(s.err_code as i64 - predicted_code(s.details, quantum) as i64))
-            .collect();
-        let orders = [
-            best_order(m_pos.iter().map(|p| p.1), 15),
-            best_order(s_pos.iter().map(|p| p.1), 15),
-            best_order(residuals.iter().copied(), 15),
-        ];
-        let mut w = BitWriter::new();
-        w.put_eg(merges.len() as u64, 0);
-        w.put_eg(splits.len() as u64, 0);
-        for k in orders {
-            w.put(k, 4);
+        let mut models = Models::new(shape);
+        let mut e = Encoder::new();
+        e.value(&mut models.counts, merges.len() as u64);
+        e.value(&mut models.counts, splits.len() as u64);
+        for (step, v) in positions(merges.iter().copied()) {
+            e.value(&mut models.merge_step, step as u64);
+            e.value(&mut models.merge_pos, v);
         }
-        for (step, v) in &m_pos {
-            w.put_eg(*step as u64, 0);
-            w.put_eg(*v, orders[0]);
+        for (step, v) in positions(splits.iter().map(|&(l, m, _)| (l, m))) {
+            e.value(&mut models.split_step, step as u64);
+            e.value(&mut models.split_pos, v);
         }
-        for (step, v) in &s_pos {
-            w.put_eg(*step as u64, 0);
-            w.put_eg(*v, orders[1]);
-        }
-        // One detail order per level present.
-        let mut level_orders = Vec::new();
-        let mut i = 0;
-        while i < splits.len() {
-            let level = splits[i].0;
-            let j = i + splits[i..].iter().take_while(|s| s.0 == level).count();
-            let vals = splits[i..j]
-                .iter()
-                .flat_map(|(_, _, s)| s.details.map(|d| zigzag(d as i64)));
-            let k = best_order(vals, 15);
-            w.put(k, 4);
-            level_orders.extend(std::iter::repeat_n(k, j - i));
-            i = j;
-        }
-        for (n, (_, _, s)) in splits.iter().enumerate() {
-            for d in s.details {
-                w.put_eg_signed(d as i64, level_orders[n]);
+        for &(level, _, s) in &splits {
+            for (d, model) in s.details.iter().zip(models.details(level)) {
+                e.value(model, zigzag(*d as i64));
             }
-            w.put_eg(residuals[n], orders[2]);
+            let residual = s.err_code as i64 - predicted_code(s.details, quantum) as i64;
+            e.value(&mut models.residual, zigzag(residual));
         }
-        w.finish()
+        e.finish()
     }
 
     /// Decodes a body written by [`Delta::pack_body`] for the same terrain.
@@ -164,16 +148,21 @@ impl Delta {
         digest: u64,
         body: &[u8],
     ) -> Result<Delta, BodyError> {
-        let mut r = BitReader::new(body);
-        let n_merges = r.get_eg(0).ok_or(BodyError::Malformed)?;
-        let n_splits = r.get_eg(0).ok_or(BodyError::Malformed)?;
-        // Every entry takes at least one bit: a count beyond the bits left is a lie.
-        if n_merges.saturating_add(n_splits) > r.remaining() {
-            return Err(BodyError::Malformed);
+        if body.is_empty() {
+            return Ok(Delta {
+                seq,
+                digest,
+                ..Delta::default()
+            });
         }
-        let mut orders = [0u32; 3];
-        for k in &mut orders {
-            *k = r.get(4).ok_or(BodyError::Malformed)?;
+        let mut r = Decoder::new(body);
+        let mut models = Models::new(shape);
+        let n_merges = r.value(&mut models.counts).ok_or(BodyError::Malformed)?;
+        let n_splits = r.value(&mut models.counts).ok_or(BodyError::Malformed)?;
+        // Each list names distinct inner nodes: a count beyond the tree's inner nodes is a lie.
+        let inner = shape.level_offset(shape.depth());
+        if n_merges > inner || n_splits > inner || r.overrun() {
+            return Err(BodyError::Malformed);
         }
         let mut delta = Delta {
             seq,
@@ -183,35 +172,37 @@ impl Delta {
         };
         let mut prev = None;
         for _ in 0..n_merges {
-            delta
-                .merges
-                .push(next_node(shape, &mut r, orders[0], &mut prev)?);
+            let node = next_node(
+                shape,
+                &mut r,
+                &mut models.merge_step,
+                &mut models.merge_pos,
+                &mut prev,
+            )?;
+            delta.merges.push(node);
         }
         let mut nodes = Vec::with_capacity(reserve(n_splits));
         let mut prev = None;
         for _ in 0..n_splits {
-            nodes.push(next_node(shape, &mut r, orders[1], &mut prev)?);
+            nodes.push(next_node(
+                shape,
+                &mut r,
+                &mut models.split_step,
+                &mut models.split_pos,
+                &mut prev,
+            )?);
         }
-        let mut level_orders = Vec::with_capacity(nodes.len());
-        let mut last_level = None;
-        let mut k = 0;
-        for n in &nodes {
-            if last_level != Some(n.level) {
-                k = r.get(4).ok_or(BodyError::Malformed)?;
-                last_level = Some(n.level);
-            }
-            level_orders.push(k);
-        }
-        for (i, &node) in nodes.iter().enumerate() {
+        for node in nodes {
             let mut details = [0i32; 3];
-            for d in &mut details {
-                let v = r
-                    .get_eg_signed(level_orders[i])
-                    .ok_or(BodyError::Malformed)?;
-                *d = i32::try_from(v).map_err(|_| BodyError::OutOfRange("detail"))?;
+            for (d, model) in details.iter_mut().zip(models.details(node.level)) {
+                let v = r.value(model).ok_or(BodyError::Malformed)?;
+                *d = i32::try_from(unzigzag(v)).map_err(|_| BodyError::OutOfRange("detail"))?;
             }
-            let res = r.get_eg(orders[2]).ok_or(BodyError::Malformed)?;
-            let code = predicted_code(details, quantum) as i64 + crate::bits::unzigzag(res);
+            let res = r.value(&mut models.residual).ok_or(BodyError::Malformed)?;
+            if r.overrun() {
+                return Err(BodyError::Malformed);
+            }
+            let code = predicted_code(details, quantum) as i64 + unzigzag(res);
             let err_code = u8::try_from(code).map_err(|_| BodyError::OutOfRange("error code"))?;
             delta.splits.push(Split {
                 node,
@@ -219,12 +210,47 @@ impl Delta {
                 details,
             });
         }
-        // Only the last byte's zero padding may follow: anything else is not this encoder's.
-        let rest = r.remaining();
-        if rest >= 8 || r.get(rest as u32) != Some(0) {
+        // The stream must end where the encoder's did: nothing missing, nothing after.
+        if !r.finished() {
             return Err(BodyError::Malformed);
         }
         Ok(delta)
+    }
+}
+
+/// The adaptive models of one body (docs/protocol.md section 5.2): every body starts afresh,
+/// so that it decodes on its own.
+struct Models {
+    /// `n_merges` and `n_splits`.
+    counts: Value,
+    merge_step: Value,
+    merge_pos: Value,
+    split_step: Value,
+    split_pos: Value,
+    /// The details, per split level and component (`dv`, `dh`, `dd`).
+    details: Vec<Value>,
+    /// The error codes' residuals: one model for all levels (one per level cost more, learning
+    /// in every body, than it saved: 4.099 against 4.091 bytes a split on fuji_srtm3).
+    residual: Value,
+}
+
+impl Models {
+    fn new(shape: &TreeShape) -> Models {
+        Models {
+            counts: Value::default(),
+            merge_step: Value::default(),
+            merge_pos: Value::default(),
+            split_step: Value::default(),
+            split_pos: Value::default(),
+            details: vec![Value::default(); 3 * shape.depth() as usize],
+            residual: Value::default(),
+        }
+    }
+
+    /// The three detail models of splits at `level` (an inner level of the tree).
+    fn details(&mut self, level: u8) -> &mut [Value] {
+        let at = 3 * level as usize;
+        &mut self.details[at..at + 3]
     }
 }
 
@@ -286,12 +312,16 @@ pub(crate) fn positions(sorted: impl Iterator<Item = (u8, u64)>) -> Vec<(u8, u64
 
 fn next_node(
     shape: &TreeShape,
-    r: &mut BitReader<'_>,
-    k: u32,
+    r: &mut Decoder<'_>,
+    step_model: &mut Value,
+    pos_model: &mut Value,
     prev: &mut Option<(u8, u64)>,
 ) -> Result<NodeId, BodyError> {
-    let step = r.get_eg(0).ok_or(BodyError::Malformed)?;
-    let v = r.get_eg(k).ok_or(BodyError::Malformed)?;
+    let step = r.value(step_model).ok_or(BodyError::Malformed)?;
+    let v = r.value(pos_model).ok_or(BodyError::Malformed)?;
+    if r.overrun() {
+        return Err(BodyError::Malformed);
+    }
     let (level, code) = match *prev {
         Some((pl, pm)) if step == 0 => {
             (pl as u64, pm.checked_add(v).and_then(|c| c.checked_add(1)))
@@ -371,33 +401,36 @@ mod tests {
     #[test]
     fn lying_counts_are_refused() {
         let shape = TreeShape::new(33, 20).unwrap();
-        let mut w = BitWriter::new();
-        w.put_eg(1 << 40, 0);
-        w.put_eg(0, 0);
-        let body = w.finish();
+        let mut e = Encoder::new();
+        let mut counts = Value::default();
+        e.value(&mut counts, shape.level_offset(shape.depth()) + 1);
+        e.value(&mut counts, 0);
+        let body = e.finish();
         assert_eq!(
             Delta::unpack_body(&shape, 0.25, 0, 0, &body),
             Err(BodyError::Malformed)
         );
     }
 
-    /// Issue 12: a count that the bits could hold, in a body of garbage, reserved room for every
+    /// Issue 12: a count that the body could hold, in a body of garbage, reserved room for every
     /// claimed entry (a 1 MiB body, about 335 MB) before its second entry failed to decode.
     #[test]
     fn issue_12_lying_counts_reserve_little() {
         assert_eq!(reserve(u64::MAX), RESERVE_MAX as usize);
         assert_eq!(reserve(17), 17);
-        let shape = TreeShape::new(65, 65).unwrap();
-        let mut w = BitWriter::new();
-        w.put_eg(0, 0);
-        w.put_eg((8 << 20) - 1000, 0);
-        w.put(0, 12);
-        // All ones: the root, then the node after it on level 0, which does not exist.
-        for _ in 0..(1 << 18) - 4 {
-            w.put(u32::MAX, 32);
-        }
-        let body = w.finish();
-        assert!(body.len() <= 1 << 20);
+        let shape = TreeShape::new(8193, 8193).unwrap();
+        let mut e = Encoder::new();
+        let mut counts = Value::default();
+        e.value(&mut counts, 0);
+        e.value(&mut counts, (8 << 20) - 1000);
+        // The root, then the node after it on level 0, which does not exist.
+        let (mut step, mut pos) = (Value::default(), Value::default());
+        e.value(&mut step, 0);
+        e.value(&mut pos, 0);
+        e.value(&mut step, 0);
+        e.value(&mut pos, 0);
+        let mut body = e.finish();
+        body.resize(1 << 20, 0xA5);
         assert_eq!(
             Delta::unpack_body(&shape, 0.25, 0, 0, &body),
             Err(BodyError::UnknownNode(NodeId {
@@ -409,7 +442,32 @@ mod tests {
     }
 
     #[test]
-    fn padding_must_be_zero_and_nothing_may_follow() {
+    fn a_body_cut_short_is_refused() {
+        let shape = TreeShape::new(65, 65).unwrap();
+        let d = Delta {
+            splits: (0..4)
+                .map(|k| Split {
+                    node: NodeId::ROOT.child(k),
+                    err_code: 9,
+                    details: [k as i32 * 100, -7, 300],
+                })
+                .collect(),
+            ..Delta::default()
+        };
+        let body = d.pack_body(&shape, 0.1);
+        // (No bytes at all is the empty delta.)
+        for n in 1..body.len() {
+            assert_eq!(
+                Delta::unpack_body(&shape, 0.1, 0, 0, &body[..n]),
+                Err(BodyError::Malformed),
+                "{n} of {} bytes",
+                body.len()
+            );
+        }
+    }
+
+    #[test]
+    fn nothing_may_follow_the_stream() {
         let shape = TreeShape::new(65, 65).unwrap();
         let d = Delta {
             seq: 1,
@@ -431,8 +489,74 @@ mod tests {
         );
         let mut dirty = body.clone();
         let last = dirty.len() - 1;
-        dirty[last] |= 1;
-        // Either the low bit was padding (refused) or data (the body changes or breaks).
+        dirty[last] ^= 1;
+        // The flush's bytes are part of the stream: a changed one changes or breaks the body.
         assert_ne!(Delta::unpack_body(&shape, 0.1, 1, 2, &dirty), Ok(d));
+    }
+}
+
+/// The worked examples of `docs/protocol.md` section 14 ("Delta 1", "Delta 2" and "Other
+/// bodies"), checked against the text, so that the document cannot drift from the code.
+#[cfg(test)]
+mod doc_examples {
+    use super::*;
+
+    fn hex(bytes: &[u8]) -> String {
+        bytes
+            .iter()
+            .map(|b| format!("{b:02X}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    fn node(level: u8, x: u32, y: u32) -> NodeId {
+        NodeId { level, x, y }
+    }
+
+    #[test]
+    fn the_protocol_doc_bodies_are_what_the_code_sends() {
+        let shape = TreeShape::new(5, 3).unwrap();
+        let q = 0.5;
+        let one = Delta {
+            splits: vec![Split {
+                node: NodeId::ROOT,
+                err_code: 92,
+                details: [0, 10, 0],
+            }],
+            ..Delta::default()
+        };
+        let two = Delta {
+            splits: vec![
+                Split {
+                    node: node(1, 0, 0),
+                    err_code: 88,
+                    details: [2, 5, 2],
+                },
+                Split {
+                    node: node(1, 1, 0),
+                    err_code: 64,
+                    details: [2, 0, 0],
+                },
+            ],
+            ..Delta::default()
+        };
+        let back = Delta {
+            merges: vec![NodeId::ROOT, node(1, 0, 0), node(1, 1, 0)],
+            ..Delta::default()
+        };
+        assert_eq!(predicted_code([0, 10, 0], q), 89);
+        assert_eq!(predicted_code([2, 5, 2], q), 86);
+        assert_eq!(predicted_code([2, 0, 0], q), 64);
+        let doc = include_str!("../../../docs/protocol.md");
+        assert!(Delta::default().pack_body(&shape, q).is_empty());
+        assert!(doc.contains("The empty delta has the empty body (no bytes)."));
+        for (name, d) in [("delta 1", &one), ("delta 2", &two), ("merge back", &back)] {
+            let body = d.pack_body(&shape, q);
+            let want = format!("=> body {}", hex(&body));
+            assert!(doc.contains(&want), "{name}: the document lacks {want:?}");
+            let mut d = d.clone();
+            d.canonicalize();
+            assert_eq!(Delta::unpack_body(&shape, q, 0, 0, &body).unwrap(), d);
+        }
     }
 }

@@ -1,0 +1,419 @@
+//! Adaptive binary range coding, for the vertex delta body (docs/protocol.md section 5).
+//!
+//! The coder is LZMA's (Igor Pavlov's range coder, as in the LZMA SDK and xz): a 32-bit range,
+//! carries resolved through a cached byte, 12-bit probabilities here, with one difference stated
+//! in the protocol: the encoder's first output byte, which is always 0, is not sent.
+//! - **Adaptive bits** ([`Bit`]): the probability that the bit is 0, in 1/4096, starting at 1/2
+//!   and moving 1/16 of the way towards each bit coded (it stays within 15..=4081 by itself).
+//! - **Direct bits**: the range halves per bit, up to 16 bits in one step.
+//! - **Values** ([`Value`]): an unsigned integer as its bucket `b` (the bit length of `v + 1`,
+//!   minus one) in unary, one adaptive bit per unary position, then the `b` bits of `v + 1`
+//!   below its leading one: the first two adaptive (per bucket, the second also per the first),
+//!   the rest direct. This is an adaptive Exp-Golomb code: the model learns each bucket's
+//!   frequency instead of a fixed order.
+//!
+//! A hand-written coder rather than a crate: the protocol must define the bit stream exactly for
+//! clients written from its text alone, LZMA's coder is the well-known one to define it by, and
+//! it is a few dozen lines. The crates that carry it keep it private (`lzma-rs`) or wrap it in a
+//! general modelling framework whose stream is not a documented standard (`constriction`).
+//!
+//! Decoding never panics and never reads past the input: a missing byte reads as 0 and marks the
+//! stream as overrun, which [`Decoder::finished`] and [`Decoder::overrun`] report.
+
+/// Bits of probability precision.
+const PROB_BITS: u32 = 12;
+/// Probability 1, in units of `2^-PROB_BITS`.
+const PROB_ONE: u16 = 1 << PROB_BITS;
+/// How fast a probability adapts: by `1/2^ADAPT_SHIFT` of the way per bit.
+const ADAPT_SHIFT: u32 = 4;
+/// The range is renormalised (shifted by a byte) whenever it falls below this.
+const TOP: u32 = 1 << 24;
+/// The largest bucket a [`Value`] codes: values are below `2^MAX_BUCKET - 1`.
+pub const MAX_BUCKET: u32 = 62;
+/// The largest value a [`Value`] codes.
+pub const MAX_VALUE: u64 = (1 << MAX_BUCKET) - 2;
+
+/// An adaptive bit: the probability, in 1/4096, that the next bit is 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Bit(u16);
+
+impl Default for Bit {
+    fn default() -> Bit {
+        Bit(PROB_ONE / 2)
+    }
+}
+
+impl Bit {
+    /// Where the range splits for this bit, and the probability after coding `bit`.
+    #[inline(always)]
+    fn bound(self, range: u32) -> u32 {
+        (range >> PROB_BITS) * self.0 as u32
+    }
+
+    #[inline(always)]
+    fn update(&mut self, bit: bool) {
+        if bit {
+            self.0 -= self.0 >> ADAPT_SHIFT;
+        } else {
+            self.0 += (PROB_ONE - self.0) >> ADAPT_SHIFT;
+        }
+    }
+}
+
+/// The adaptive model of one context's values (see the module documentation).
+#[derive(Clone, Debug)]
+pub struct Value {
+    /// The unary bucket code: position `i` says whether the bucket exceeds `i`.
+    unary: [Bit; MAX_BUCKET as usize],
+    /// Per bucket, the first bit below the leading one, then the second given the first.
+    top: [[Bit; 3]; MAX_BUCKET as usize],
+}
+
+impl Default for Value {
+    fn default() -> Value {
+        Value {
+            unary: [Bit::default(); MAX_BUCKET as usize],
+            top: [[Bit::default(); 3]; MAX_BUCKET as usize],
+        }
+    }
+}
+
+/// Writes a range-coded stream.
+#[derive(Debug)]
+pub struct Encoder {
+    /// The low end of the interval, with a carry in bit 32.
+    low: u64,
+    range: u32,
+    /// The last byte not yet written (a carry may still add to it) and how many 0xFF bytes
+    /// follow it, plus one.
+    cache: u8,
+    cache_size: u64,
+    out: Vec<u8>,
+}
+
+impl Default for Encoder {
+    fn default() -> Encoder {
+        Encoder {
+            low: 0,
+            range: u32::MAX,
+            cache: 0,
+            cache_size: 1,
+            out: Vec::new(),
+        }
+    }
+}
+
+impl Encoder {
+    /// An empty stream.
+    pub fn new() -> Encoder {
+        Encoder::default()
+    }
+
+    #[inline(always)]
+    fn normalize(&mut self) {
+        while self.range < TOP {
+            self.range <<= 8;
+            self.shift_low();
+        }
+    }
+
+    fn shift_low(&mut self) {
+        if (self.low as u32) < 0xFF00_0000 || (self.low >> 32) != 0 {
+            let carry = (self.low >> 32) as u8;
+            let mut byte = self.cache;
+            loop {
+                self.out.push(byte.wrapping_add(carry));
+                byte = 0xFF;
+                self.cache_size -= 1;
+                if self.cache_size == 0 {
+                    break;
+                }
+            }
+            self.cache = (self.low >> 24) as u8;
+        }
+        self.cache_size += 1;
+        self.low = (self.low & 0x00FF_FFFF) << 8;
+    }
+
+    /// Codes `bit` with the adaptive probability `model`, and adapts it.
+    #[inline]
+    pub fn bit(&mut self, model: &mut Bit, bit: bool) {
+        let bound = model.bound(self.range);
+        if bit {
+            self.low += bound as u64;
+            self.range -= bound;
+        } else {
+            self.range = bound;
+        }
+        model.update(bit);
+        self.normalize();
+    }
+
+    /// Codes the low `n` bits of `value` (n <= 16) at probability 1/2 each, as one step.
+    #[inline]
+    pub fn direct(&mut self, value: u32, n: u32) {
+        debug_assert!(n <= 16 && (n == 16 || value >> n == 0));
+        self.range >>= n;
+        self.low += value as u64 * self.range as u64;
+        self.normalize();
+    }
+
+    /// Codes `v` (at most [`MAX_VALUE`]) with the adaptive model `model`.
+    #[inline]
+    pub fn value(&mut self, model: &mut Value, v: u64) {
+        debug_assert!(v <= MAX_VALUE);
+        let b = 63 - (v + 1).leading_zeros();
+        for m in &mut model.unary[..b as usize] {
+            self.bit(m, true);
+        }
+        self.bit(&mut model.unary[b as usize], false);
+        let rest = v + 1 - (1 << b);
+        let top = &mut model.top[b as usize];
+        if b >= 1 {
+            let first = (rest >> (b - 1)) & 1 == 1;
+            self.bit(&mut top[0], first);
+            if b >= 2 {
+                self.bit(&mut top[1 + first as usize], (rest >> (b - 2)) & 1 == 1);
+                let mut n = b - 2;
+                while n > 0 {
+                    let k = n.min(16);
+                    n -= k;
+                    self.direct(((rest >> n) & ((1 << k) - 1)) as u32, k);
+                }
+            }
+        }
+    }
+
+    /// Flushes the interval and returns the stream (without the always-zero first byte).
+    pub fn finish(mut self) -> Vec<u8> {
+        for _ in 0..5 {
+            self.shift_low();
+        }
+        debug_assert_eq!(self.out.first(), Some(&0));
+        self.out.remove(0);
+        self.out
+    }
+}
+
+/// Reads a stream written by [`Encoder`].
+#[derive(Debug)]
+pub struct Decoder<'a> {
+    bytes: &'a [u8],
+    /// The next byte to read; past the end once the input ran out.
+    pos: usize,
+    range: u32,
+    /// The coded value's offset from the interval's low end.
+    code: u32,
+}
+
+impl<'a> Decoder<'a> {
+    /// A decoder over `bytes`.
+    pub fn new(bytes: &'a [u8]) -> Decoder<'a> {
+        let mut d = Decoder {
+            bytes,
+            pos: 0,
+            range: u32::MAX,
+            code: 0,
+        };
+        for _ in 0..4 {
+            d.code = (d.code << 8) | d.next_byte() as u32;
+        }
+        d
+    }
+
+    #[inline(always)]
+    fn next_byte(&mut self) -> u8 {
+        let b = self.bytes.get(self.pos).copied().unwrap_or(0);
+        self.pos += 1;
+        b
+    }
+
+    #[inline(always)]
+    fn normalize(&mut self) {
+        while self.range < TOP {
+            self.range <<= 8;
+            self.code = (self.code << 8) | self.next_byte() as u32;
+        }
+    }
+
+    /// Whether the decoder needed bytes beyond the input: the stream is truncated or garbage.
+    pub fn overrun(&self) -> bool {
+        self.pos > self.bytes.len()
+    }
+
+    /// Whether the stream ended exactly where the encoder's did: every byte read, none missing,
+    /// and the coded value at the interval's low end, where the encoder's flush leaves it.
+    pub fn finished(&self) -> bool {
+        self.pos == self.bytes.len() && self.code == 0
+    }
+
+    /// Decodes a bit with the adaptive probability `model`, and adapts it.
+    #[inline]
+    pub fn bit(&mut self, model: &mut Bit) -> bool {
+        // Without branches on the bit: it is as good as random to a branch predictor.
+        let bound = model.bound(self.range);
+        let bit = self.code >= bound;
+        let mask = 0u32.wrapping_sub(bit as u32);
+        self.code -= bound & mask;
+        self.range = bound ^ ((bound ^ self.range.wrapping_sub(bound)) & mask);
+        let p = model.0;
+        let down = p - (p >> ADAPT_SHIFT);
+        let up = p + ((PROB_ONE - p) >> ADAPT_SHIFT);
+        model.0 = if bit { down } else { up };
+        self.normalize();
+        bit
+    }
+
+    /// Decodes `n` direct bits (n <= 16); `None` if the stream holds a value no encoder writes.
+    #[inline]
+    pub fn direct(&mut self, n: u32) -> Option<u32> {
+        self.range >>= n;
+        let v = self.code / self.range;
+        if v >> n != 0 {
+            return None;
+        }
+        self.code -= v * self.range;
+        self.normalize();
+        Some(v)
+    }
+
+    /// Decodes a value coded with the adaptive model `model`; `None` if its bucket is beyond
+    /// [`MAX_BUCKET`] or its direct bits are impossible.
+    #[inline]
+    pub fn value(&mut self, model: &mut Value) -> Option<u64> {
+        let mut b = 0;
+        loop {
+            if b == MAX_BUCKET {
+                return None;
+            }
+            if !self.bit(&mut model.unary[b as usize]) {
+                break;
+            }
+            b += 1;
+        }
+        let top = &mut model.top[b as usize];
+        let mut rest = 0u64;
+        if b >= 1 {
+            let first = self.bit(&mut top[0]);
+            rest = first as u64;
+            if b >= 2 {
+                rest = rest << 1 | self.bit(&mut top[1 + first as usize]) as u64;
+                let mut n = b - 2;
+                while n > 0 {
+                    let k = n.min(16);
+                    n -= k;
+                    rest = rest << k | self.direct(k)? as u64;
+                }
+            }
+        }
+        Some((1 << b) + rest - 1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// What one test stream holds: adaptive bits in a few models, direct bits, values.
+    #[derive(Clone, Debug)]
+    enum Sym {
+        Bit(usize, bool),
+        Direct(u32, u32),
+        Value(usize, u64),
+    }
+
+    fn arb_sym() -> impl Strategy<Value = Sym> {
+        prop_oneof![
+            (0usize..3, any::<bool>()).prop_map(|(m, b)| Sym::Bit(m, b)),
+            (1u32..=16, any::<u32>()).prop_map(|(n, v)| Sym::Direct(v & ((1 << n) - 1), n)),
+            (0usize..3, prop_oneof![0u64..20, 0u64..5000, 0..=MAX_VALUE])
+                .prop_map(|(m, v)| Sym::Value(m, v)),
+            // Long runs of one bit push a model to its limits.
+            Just(Sym::Bit(0, true)),
+        ]
+    }
+
+    fn encode(syms: &[Sym]) -> Vec<u8> {
+        let (mut bits, mut values) = ([Bit::default(); 3], vec![Value::default(); 3]);
+        let mut e = Encoder::new();
+        for s in syms {
+            match *s {
+                Sym::Bit(m, b) => e.bit(&mut bits[m], b),
+                Sym::Direct(v, n) => e.direct(v, n),
+                Sym::Value(m, v) => e.value(&mut values[m], v),
+            }
+        }
+        e.finish()
+    }
+
+    proptest! {
+        #[test]
+        fn streams_round_trip_and_end_exactly(syms in proptest::collection::vec(arb_sym(), 0..400)) {
+            let bytes = encode(&syms);
+            let (mut bits, mut values) = ([Bit::default(); 3], vec![Value::default(); 3]);
+            let mut d = Decoder::new(&bytes);
+            for s in &syms {
+                match *s {
+                    Sym::Bit(m, b) => prop_assert_eq!(d.bit(&mut bits[m]), b),
+                    Sym::Direct(v, n) => prop_assert_eq!(d.direct(n), Some(v)),
+                    Sym::Value(m, v) => prop_assert_eq!(d.value(&mut values[m]), Some(v)),
+                }
+            }
+            prop_assert!(!d.overrun());
+            prop_assert!(d.finished(), "{} of {} bytes, code {}", d.pos, bytes.len(), d.code);
+        }
+
+        #[test]
+        fn garbage_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..64)) {
+            let mut d = Decoder::new(&bytes);
+            let (mut bit, mut value) = (Bit::default(), Value::default());
+            for i in 0..200 {
+                match i % 3 {
+                    0 => { d.bit(&mut bit); }
+                    1 => { let _ = d.direct(1 + i % 16); }
+                    _ => { let _ = d.value(&mut value); }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_model_adapts_and_stays_within_its_limits() {
+        let mut m = Bit::default();
+        for _ in 0..1000 {
+            m.update(true);
+        }
+        assert_eq!(m.0, 15);
+        for _ in 0..1000 {
+            m.update(false);
+        }
+        assert_eq!(m.0, 4081);
+        // A long run of a well-predicted bit costs little: 10,000 zeros in a few bytes.
+        let mut e = Encoder::new();
+        let mut m = Bit::default();
+        for _ in 0..10_000 {
+            e.bit(&mut m, false);
+        }
+        assert!(e.finish().len() < 30);
+    }
+
+    #[test]
+    fn truncated_streams_overrun_and_extra_bytes_are_not_finished() {
+        let syms: Vec<Sym> = (0..50u64).map(|v| Sym::Value(0, v * 977)).collect();
+        let bytes = encode(&syms);
+        let decode_all = |b: &[u8]| {
+            let mut d = Decoder::new(b);
+            let mut m = Value::default();
+            for _ in 0..50 {
+                d.value(&mut m);
+            }
+            (d.overrun(), d.finished())
+        };
+        assert_eq!(decode_all(&bytes), (false, true));
+        assert!(decode_all(&bytes[..bytes.len() - 1]).0);
+        let mut longer = bytes.clone();
+        longer.push(0);
+        assert_eq!(decode_all(&longer), (false, false));
+    }
+}
