@@ -8,7 +8,7 @@
 //! - [`cut`]: the set of active nodes, split and merge, and the digest of the active set.
 //! - [`haar`]: the integer Haar step (parent plus three details) and the static-error code.
 //! - [`view`]: cameras, frustum, screen-space error and the geomorph factor.
-//! - [`delta`]: merges and splits between two cuts, and their compact bit-packed body.
+//! - [`delta`]: merges and splits between two cuts, and their compact range-coded body.
 //! - [`range`]: the adaptive binary range coder behind that body; [`bits`]: the bit writer and
 //!   reader with Exp-Golomb codes behind the tile bodies.
 //! - [`mirror`]: the client-side cut with heights, rebuilt from deltas and checked by digest.
