@@ -11,18 +11,18 @@
 //! runs between the client's.
 
 use relief_proto::codec;
-use relief_proto::delta::Delta;
+use relief_proto::delta::{BodyModels, Delta};
 use relief_proto::mesh::{FanMesh, oracle};
 use relief_proto::mirror::Mirror;
 use relief_proto::msg::ServerMsg;
 use relief_proto::terrain::TerrainGeometry;
 use std::time::Instant;
 
-fn unwire(bytes: &[u8], geom: &TerrainGeometry) -> Delta {
+fn unwire(bytes: &[u8], geom: &TerrainGeometry, models: &mut BodyModels) -> Delta {
     match codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT).expect("decodes") {
         ServerMsg::Delta(d) => d
             .delta
-            .unpack(&geom.shape, geom.z_quantum)
+            .unpack_in(&geom.shape, geom.z_quantum, models)
             .expect("unpacks"),
         other => panic!("expected a delta, got {other:?}"),
     }
@@ -36,9 +36,10 @@ fn pose(
     geom: &TerrainGeometry,
     mirror: &mut Mirror,
     mesh: &mut FanMesh,
+    models: &mut BodyModels,
     stages: &str,
 ) -> usize {
-    let d = unwire(msg, geom);
+    let d = unwire(msg, geom, models);
     let shape = &geom.shape;
     match stages {
         "decode" => {}
@@ -77,8 +78,9 @@ fn main() {
     let mut changes = 0;
     for _ in 0..runs {
         let mut mirror = Mirror::new(&geom, root_z);
+        let mut models = BodyModels::new();
         mirror
-            .apply(&geom, &unwire(msgs[0], &geom), |_, _| {})
+            .apply(&geom, &unwire(msgs[0], &geom, &mut models), |_, _| {})
             .expect("initial cut");
         let mut mesh = FanMesh::new(shape, mirror.cut());
         let mut us = Vec::with_capacity(msgs.len());
@@ -87,7 +89,7 @@ fn main() {
             evict.fill(k as u8);
             std::hint::black_box(&evict);
             let t0 = Instant::now();
-            changes += pose(m, &geom, &mut mirror, &mut mesh, stages);
+            changes += pose(m, &geom, &mut mirror, &mut mesh, &mut models, stages);
             us.push(t0.elapsed().as_secs_f64() * 1e6);
         }
         if stages == "all" {

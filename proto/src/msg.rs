@@ -8,7 +8,7 @@
 //! [`Welcome::max_in_flight`] deltas are unacknowledged at any time.
 
 use crate::codec::{Decode, Encode};
-use crate::delta::{BodyError, Delta};
+use crate::delta::{BodyError, BodyModels, Delta};
 use crate::query::{AnswerBatch, BatchRefused, QueryBatch};
 use crate::snapshot::Snapshot;
 use crate::terrain::TerrainGeometry;
@@ -18,7 +18,7 @@ use crate::view::{Camera, Lens};
 
 /// The protocol version this crate speaks. A hello with another version is refused with
 /// [`CloseReason::Version`].
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 
 /// Which stream a session receives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Encode, Decode)]
@@ -211,12 +211,13 @@ pub struct WireDelta {
     pub seq: u64,
     /// Digest of the cut after the delta.
     pub digest: u64,
-    /// Merges and splits, bit-packed.
+    /// Merges and splits, range-coded (docs/protocol.md section 5).
     pub body: Vec<u8>,
 }
 
 impl WireDelta {
-    /// Packs `delta` for a terrain of shape `shape` and z quantum `quantum`.
+    /// Packs `delta` into a body that decodes on its own (fresh models: a one-shot delta) for a
+    /// terrain of shape `shape` and z quantum `quantum`.
     pub fn pack(delta: &Delta, shape: &TreeShape, quantum: f32) -> WireDelta {
         WireDelta {
             seq: delta.seq,
@@ -225,9 +226,28 @@ impl WireDelta {
         }
     }
 
-    /// Unpacks the body against the terrain.
+    /// Packs the next delta of a connection with its body models ([`BodyModels`]).
+    pub fn pack_in(delta: &Delta, models: &mut BodyModels, quantum: f32) -> WireDelta {
+        WireDelta {
+            seq: delta.seq,
+            digest: delta.digest,
+            body: delta.pack_body_in(models, quantum),
+        }
+    }
+
+    /// Unpacks a body that decodes on its own (a one-shot delta) against the terrain.
     pub fn unpack(&self, shape: &TreeShape, quantum: f32) -> Result<Delta, BodyError> {
         Delta::unpack_body(shape, quantum, self.seq, self.digest, &self.body)
+    }
+
+    /// Unpacks the next delta of a connection with its body models ([`BodyModels`]).
+    pub fn unpack_in(
+        &self,
+        shape: &TreeShape,
+        quantum: f32,
+        models: &mut BodyModels,
+    ) -> Result<Delta, BodyError> {
+        Delta::unpack_body_in(shape, quantum, self.seq, self.digest, &self.body, models)
     }
 }
 
@@ -389,7 +409,7 @@ mod tests {
     #[test]
     fn the_welcome_example_of_the_protocol_doc_is_what_the_code_sends() {
         let w = ServerMsg::Welcome(Welcome {
-            version: 3,
+            version: PROTOCOL_VERSION,
             session_id: 42,
             terrain: TerrainInfo {
                 id: 0x0123_4567_89AB_CDEF,

@@ -49,11 +49,13 @@ fn main() -> anyhow::Result<()> {
         file.write_all(&v.to_le_bytes())?;
     }
     file.write_all(&store.root_z().to_le_bytes())?;
+    // One connection: the body models carry from each delta to the next.
+    let mut models = relief_proto::delta::BodyModels::new();
     let mut write = |delta: &relief_proto::delta::Delta| -> anyhow::Result<()> {
         let bytes = codec::encode(&ServerMsg::Delta(SessionDelta {
             pose_seq: delta.seq,
             complete: true,
-            delta: WireDelta::pack(delta, s, geom.z_quantum),
+            delta: WireDelta::pack_in(delta, &mut models, geom.z_quantum),
         }));
         file.write_all(&(bytes.len() as u32).to_le_bytes())?;
         Ok(file.write_all(&bytes)?)

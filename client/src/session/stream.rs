@@ -4,6 +4,7 @@
 //! acknowledgements in `session.rs` are the same for both.
 
 use super::types::ClientError;
+use relief_proto::delta::BodyModels;
 use relief_proto::mesh::FanMesh;
 use relief_proto::mirror::{Change, Mirror};
 use relief_proto::msg::{CrackMode, TileStreamParams, Welcome, WireDelta};
@@ -21,6 +22,9 @@ pub struct VertexState {
     pub(super) mesh: FanMesh,
     /// Changes applied since the last `take_changes` (with `record_changes`).
     pub(super) changes: Vec<Change>,
+    /// The connection's delta-body models (docs/protocol.md section 5.2): fresh with every
+    /// welcome, resumed or not.
+    pub(super) models: Box<BodyModels>,
 }
 
 /// The tile stream's client state.
@@ -78,6 +82,7 @@ impl StreamState {
                     mirror,
                     mesh,
                     changes: Vec::new(),
+                    models: Box::default(),
                 }))
             }
             (Some(params), Some(info)) => {
@@ -114,7 +119,7 @@ impl StreamState {
         match self {
             StreamState::Vertex(v) => {
                 let delta = wire
-                    .unpack(&geom.shape, geom.z_quantum)
+                    .unpack_in(&geom.shape, geom.z_quantum, &mut v.models)
                     .map_err(|e| format!("bad delta: {e}"))?;
                 let shape = &geom.shape;
                 let (mesh, changes) = (&mut v.mesh, &mut v.changes);
@@ -154,11 +159,13 @@ impl StreamState {
         }
     }
 
-    /// After a resumed welcome: the server knows the active set only, so a tile client's
-    /// cache is cut down to it (both ends' eviction must agree).
+    /// After a resumed welcome: a new connection's delta bodies start from fresh models; the
+    /// server knows the active set only, so a tile client's cache is cut down to it (both ends'
+    /// eviction must agree).
     pub(super) fn resumed(&mut self) {
-        if let StreamState::Tiles(t) = self {
-            t.mirror.keep_active_only();
+        match self {
+            StreamState::Vertex(v) => *v.models = BodyModels::new(),
+            StreamState::Tiles(t) => t.mirror.keep_active_only(),
         }
     }
 

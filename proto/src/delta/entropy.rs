@@ -15,10 +15,13 @@
 //!   how rare each one is in this run.
 //!
 //! It is a bound on any coder of these symbols with these contexts and no other knowledge, not a
-//! coder: a body is decoded on its own, so the real coder also pays for learning its statistics
-//! in every delta (it can beat the bound slightly on positions, whose top two bits below the
-//! leading one it models). Merges are not in it: `split_bytes_mean` counts them, so the two
-//! differ by the merges' positions too.
+//! coder. The real coder's models carry over from body to body within a connection, but they
+//! adapt (they track the statistics of the last few dozen symbols rather than the whole run's),
+//! and it can beat the bound slightly on positions, whose top two bits below the leading one it
+//! models. Merges are not in it: `split_bytes_mean` counts them, so the two differ by the merges'
+//! positions too. [`SplitEntropy::delta_bytes_per_split`] adds the merge positions (level steps
+//! and buckets in contexts of their own, raw bits at one bit each): the benchmark's
+//! `delta_entropy_bytes`, the least that bodies with these contexts can cost per split.
 
 use super::{Delta, morton, positions, predicted_code};
 use crate::bits::zigzag;
@@ -35,6 +38,17 @@ enum Context {
     Step,
     /// The Exp-Golomb buckets of split position values.
     PositionBucket,
+    /// The level steps of merge positions.
+    MergeStep,
+    /// The Exp-Golomb buckets of merge position values.
+    MergePositionBucket,
+}
+
+impl Context {
+    /// Whether the context is a merge's (not in the split payloads).
+    fn is_merge(self) -> bool {
+        matches!(self, Context::MergeStep | Context::MergePositionBucket)
+    }
 }
 
 /// Symbol counts of the split payloads of many deltas.
@@ -42,15 +56,25 @@ enum Context {
 pub struct SplitEntropy {
     /// How often each symbol occurred, per context.
     counts: FxHashMap<(Context, u64), u64>,
-    /// Bits below the leading one of the position values, counted at one bit each.
+    /// Bits below the leading one of the split position values, counted at one bit each.
     raw_bits: u64,
+    /// The same for the merge position values.
+    merge_raw_bits: u64,
     /// Splits tallied.
     splits: u64,
 }
 
 impl SplitEntropy {
-    /// Tallies the splits of `delta`, coded with z quantum `quantum`.
+    /// Tallies the splits and merges of `delta`, coded with z quantum `quantum`.
     pub fn add(&mut self, delta: &Delta, quantum: f32) {
+        let mut merges: Vec<_> = delta.merges.iter().map(|&n| (n.level, morton(n))).collect();
+        merges.sort_unstable();
+        for (step, value) in positions(merges.into_iter()) {
+            self.count(Context::MergeStep, step as u64);
+            let bucket = 64 - (value + 1).leading_zeros() as u64;
+            self.count(Context::MergePositionBucket, bucket);
+            self.merge_raw_bits += bucket - 1;
+        }
         let mut splits: Vec<_> = delta
             .splits
             .iter()
@@ -84,16 +108,28 @@ impl SplitEntropy {
 
     /// The entropy of the tallied split payloads, in bytes per split (0 with no splits).
     pub fn bytes_per_split(&self) -> f64 {
+        (self.bits(false) + self.raw_bits as f64) / 8.0 / self.splits.max(1) as f64
+    }
+
+    /// The entropy of the split payloads and the merge positions together, in bytes per split:
+    /// what any coder of these symbols in these contexts spends on a run's bodies at the least
+    /// (the counts aside).
+    pub fn delta_bytes_per_split(&self) -> f64 {
+        let bits = self.bits(false) + self.bits(true);
+        (bits + (self.raw_bits + self.merge_raw_bits) as f64) / 8.0 / self.splits.max(1) as f64
+    }
+
+    /// Order-0 bits of the modelled symbols in the merges' contexts or in the others.
+    fn bits(&self, merges: bool) -> f64 {
         let mut totals: FxHashMap<Context, u64> = FxHashMap::default();
         for (&(c, _), &n) in &self.counts {
             *totals.entry(c).or_default() += n;
         }
-        let bits: f64 = self
-            .counts
+        self.counts
             .iter()
+            .filter(|((c, _), _)| c.is_merge() == merges)
             .map(|(&(c, _), &n)| n as f64 * (totals[&c] as f64 / n as f64).log2())
-            .sum();
-        (bits + self.raw_bits as f64) / 8.0 / self.splits.max(1) as f64
+            .sum()
     }
 }
 
@@ -150,5 +186,38 @@ mod tests {
         let mut e = SplitEntropy::default();
         e.add(&d, 0.1);
         assert!(e.bytes_per_split() * 8.0 <= d.pack_body(&shape, 0.1).len() as f64);
+        assert_eq!(e.delta_bytes_per_split(), e.bytes_per_split());
+    }
+
+    #[test]
+    fn merges_count_in_the_delta_entropy_only() {
+        let mut d = Delta {
+            splits: (0..8).map(|x| split(x, [5, -3, 1])).collect(),
+            ..Delta::default()
+        };
+        let mut e = SplitEntropy::default();
+        e.add(&d, 0.1);
+        let splits_only = e.bytes_per_split();
+        // Merges far apart: their gaps carry raw bits.
+        d.merges = (0..4)
+            .map(|i| NodeId {
+                level: 6,
+                x: i * 17,
+                y: 3 * i,
+            })
+            .collect();
+        let mut e = SplitEntropy::default();
+        e.add(&d, 0.1);
+        assert_eq!(e.bytes_per_split(), splits_only);
+        // Morton codes 0, 267, 1068, 1415: steps {6, 0, 0, 0}, values 0, 266, 800, 346 in
+        // buckets {1, 9, 10, 9} with 0 + 8 + 9 + 8 raw bits.
+        let steps = 4.0 * (0.25 * 4f64.log2() + 0.75 * (4.0f64 / 3.0).log2());
+        let buckets = 2.0 * 4f64.log2() + 2.0 * 2f64.log2();
+        let want = splits_only + (steps + buckets + 25.0) / 8.0 / 8.0;
+        assert!(
+            (e.delta_bytes_per_split() - want).abs() < 1e-9,
+            "{}",
+            e.delta_bytes_per_split()
+        );
     }
 }

@@ -14,6 +14,7 @@ use crate::lod::vertex::session::VertexSession;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use glam::Vec3;
 use relief_proto::codec;
+use relief_proto::delta::BodyModels;
 use relief_proto::mesh::{self, FanMesh, MorphRule, drawn_position};
 use relief_proto::mirror::Mirror;
 use relief_proto::msg::{ServerMsg, SessionDelta, WireDelta};
@@ -133,6 +134,10 @@ pub struct LodBenchReport {
     /// under the body coder's contexts, bytes per split: what these contexts allow any coder
     /// (issue 11; [`relief_proto::delta::SplitEntropy`]).
     pub split_entropy_bytes: f64,
+    /// The same with the merge positions added, per split: the least that bodies in these
+    /// contexts can cost, against `split_bytes_mean`
+    /// ([`relief_proto::delta::SplitEntropy::delta_bytes_per_split`]).
+    pub delta_entropy_bytes: f64,
     /// Wire bytes of the session's first delta.
     pub initial_delta_bytes: u64,
     /// Wire bytes per second of flight after the first delta.
@@ -140,7 +145,8 @@ pub struct LodBenchReport {
     /// Bytes over the whole path, raw and gzipped, with their rates.
     #[serde(flatten)]
     pub wire: WireSummary,
-    /// Server memory of the session's state, bytes, median over poses.
+    /// Server memory of the session's state (its cut and schedule, and the connection's body
+    /// models), bytes, median over poses.
     pub session_bytes: f64,
     /// The same per active node, median over poses.
     pub session_bytes_per_active_node: f64,
@@ -189,10 +195,12 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
     // The paper's full top-down pass, run beside the session for its cost (same decisions).
     let mut paper_cut = session.cut();
     let first = engine.full_delta(&paper_cut, 0);
-    let first_bytes = wire(&first, geom);
+    // The connection's body models, the server's and the client's (docs/protocol.md 5.2).
+    let (mut server_models, mut client_models) = (BodyModels::new(), BodyModels::new());
+    let first_bytes = wire(&first, geom, &mut server_models);
     let mut entropy = relief_proto::delta::SplitEntropy::default();
     entropy.add(&first, geom.z_quantum);
-    let decoded = unwire(&first_bytes, geom)?;
+    let decoded = unwire(&first_bytes, geom, &mut client_models)?;
     mirror.apply(geom, &decoded, |_, _| {})?;
     let mut mesh = FanMesh::new(shape, mirror.cut());
 
@@ -206,7 +214,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         let mut st = UpdateStats::default();
         let t0 = Instant::now();
         let delta = session.update(&engine, &view, &p, f as u64, &mut st);
-        let bytes = wire(&delta, geom);
+        let bytes = wire(&delta, geom, &mut server_models);
         r.update_us.push(t0.elapsed().as_secs_f64() * 1e6);
         entropy.add(&delta, geom.z_quantum);
         r.visited.push(st.visited as f64);
@@ -228,7 +236,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         }
 
         let t0 = Instant::now();
-        let decoded = unwire(&bytes, geom)?;
+        let decoded = unwire(&bytes, geom, &mut client_models)?;
         match mirror.apply(geom, &decoded, |c, ch| {
             mesh.update_around(shape, c, ch.node())
         }) {
@@ -253,7 +261,8 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         }
         r.active.push(session.active_count() as f64);
         r.triangles.push(mesh.triangle_count() as f64);
-        r.session_bytes.push(session.memory_bytes() as f64);
+        r.session_bytes
+            .push((session.memory_bytes() + size_of::<BodyModels>()) as f64);
 
         if (f - 1) % oracle_every == 0 {
             r.oracle_checks += 1;
@@ -305,6 +314,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         merges_total: r.merges,
         split_bytes_mean: r.bytes as f64 / r.splits.max(1) as f64,
         split_entropy_bytes: entropy.bytes_per_split(),
+        delta_entropy_bytes: entropy.delta_bytes_per_split(),
         initial_delta_bytes: first_bytes.len() as u64,
         delta_bytes_per_s_mean: r.path_bytes as f64 / seconds,
         wire: r.wire.summary(PATH_HZ as usize),
@@ -351,17 +361,25 @@ struct Accum {
     session_bytes: Vec<f64>,
 }
 
-fn wire(delta: &relief_proto::delta::Delta, geom: &TerrainGeometry) -> Vec<u8> {
+fn wire(
+    delta: &relief_proto::delta::Delta,
+    geom: &TerrainGeometry,
+    models: &mut BodyModels,
+) -> Vec<u8> {
     codec::encode(&ServerMsg::Delta(SessionDelta {
         pose_seq: delta.seq,
         complete: true,
-        delta: WireDelta::pack(delta, &geom.shape, geom.z_quantum),
+        delta: WireDelta::pack_in(delta, models, geom.z_quantum),
     }))
 }
 
-fn unwire(bytes: &[u8], geom: &TerrainGeometry) -> anyhow::Result<relief_proto::delta::Delta> {
+fn unwire(
+    bytes: &[u8],
+    geom: &TerrainGeometry,
+    models: &mut BodyModels,
+) -> anyhow::Result<relief_proto::delta::Delta> {
     match codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT)? {
-        ServerMsg::Delta(d) => Ok(d.delta.unpack(&geom.shape, geom.z_quantum)?),
+        ServerMsg::Delta(d) => Ok(d.delta.unpack_in(&geom.shape, geom.z_quantum, models)?),
         other => anyhow::bail!("expected a delta, got {other:?}"),
     }
 }

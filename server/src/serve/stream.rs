@@ -18,6 +18,7 @@ use crate::lod::vertex::session::VertexSession;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use crate::store::Store;
 use relief_proto::cut::Cut;
+use relief_proto::delta::BodyModels;
 use relief_proto::view::{Camera, Lens, ViewState};
 
 /// How a session's cut is kept.
@@ -40,6 +41,8 @@ pub struct Stream {
     lens: Lens,
     /// Sequence number of the last delta produced.
     seq: u64,
+    /// The connection's delta-body models (docs/protocol.md section 5.2), for a vertex stream.
+    models: Option<Box<BodyModels>>,
 }
 
 /// One produced delta.
@@ -79,6 +82,7 @@ impl Stream {
             params,
             lens,
             seq: 0,
+            models: Some(Box::default()),
         }
     }
 
@@ -89,6 +93,7 @@ impl Stream {
             params: LodParams::default(),
             lens,
             seq: 0,
+            models: None,
         }
     }
 
@@ -99,6 +104,7 @@ impl Stream {
             params: LodParams::default(),
             lens: Lens::STANDARD,
             seq: 0,
+            models: None,
         }
     }
 
@@ -130,8 +136,15 @@ impl Stream {
             }
             Lod::Budgeted(cut) => {
                 let engine = VertexEngine::new(store);
-                let b =
-                    budget::budgeted_update(&engine, cut, &view, &self.params, max_body_bytes, seq);
+                let b = budget::budgeted_update(
+                    &engine,
+                    cut,
+                    &view,
+                    &self.params,
+                    max_body_bytes,
+                    self.models.get_or_insert_with(Box::default),
+                    seq,
+                );
                 (b.delta, b.complete)
             }
         };
@@ -140,7 +153,7 @@ impl Stream {
             seq,
             digest: delta.digest,
             complete,
-            body: delta.pack_body(&g.shape, g.z_quantum),
+            body: delta.pack_body_in(self.models.get_or_insert_with(Box::default), g.z_quantum),
         }
     }
 
@@ -180,10 +193,12 @@ impl Stream {
 
     /// Bytes of memory the state holds.
     pub fn memory_bytes(&self) -> usize {
-        match &self.lod {
-            Lod::Coherent(s) => s.memory_bytes(),
-            Lod::Budgeted(c) => c.memory_bytes(),
-            Lod::Tiles(s) => s.memory_bytes(),
-        }
+        let models = self.models.as_ref().map_or(0, |_| size_of::<BodyModels>());
+        models
+            + match &self.lod {
+                Lod::Coherent(s) => s.memory_bytes(),
+                Lod::Budgeted(c) => c.memory_bytes(),
+                Lod::Tiles(s) => s.memory_bytes(),
+            }
     }
 }

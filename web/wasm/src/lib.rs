@@ -26,6 +26,7 @@
 
 use relief_proto::close::CloseReason;
 use relief_proto::codec::{HARD_LIMIT, decode, encode};
+use relief_proto::delta::BodyModels;
 use relief_proto::mesh::scene::{Pool, Scene};
 use relief_proto::mesh::{FanMesh, MorphRule};
 use relief_proto::mirror::{Change, Mirror};
@@ -61,12 +62,14 @@ enum Stream {
         mirror: TileMirror,
     },
     /// The mirrored cut, its fans and their GPU records; `changes` is a buffer kept between
-    /// deltas.
+    /// deltas; `models` are the connection's delta-body models (protocol section 5.2), fresh
+    /// with every welcome.
     Vertex {
         mirror: Box<Mirror>,
         mesh: Box<FanMesh>,
         scene: Box<Scene>,
         changes: Vec<Change>,
+        models: Box<BodyModels>,
     },
 }
 
@@ -363,10 +366,11 @@ impl TileSession {
                         mesh,
                         scene,
                         changes,
+                        models,
                     } => {
                         let delta = d
                             .delta
-                            .unpack(&geom.shape, geom.z_quantum)
+                            .unpack_in(&geom.shape, geom.z_quantum, models)
                             .map_err(|e| JsError::new(&format!("desync: bad delta: {e}")))?;
                         changes.clear();
                         mirror
@@ -420,8 +424,10 @@ impl TileSession {
                 && s.tiles().map(|(i, _)| i) == info.as_ref()
                 && s.digest() == w.digest
         }) {
-            if let Stream::Tiles { mirror, .. } = &mut s.stream {
-                mirror.keep_active_only();
+            match &mut s.stream {
+                Stream::Tiles { mirror, .. } => mirror.keep_active_only(),
+                // A new connection: its bodies start from fresh models.
+                Stream::Vertex { models, .. } => **models = BodyModels::new(),
             }
             return Ok("resumed");
         }
@@ -448,6 +454,7 @@ impl TileSession {
                     mesh: Box::new(mesh),
                     scene: Box::new(scene),
                     changes: Vec::new(),
+                    models: Box::default(),
                 }
             }
         };

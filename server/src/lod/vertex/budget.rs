@@ -32,7 +32,7 @@
 use super::{LodParams, VertexEngine};
 use relief_proto::bits::{best_order, eg_len, zigzag};
 use relief_proto::cut::Cut;
-use relief_proto::delta::{Delta, Split, predicted_code};
+use relief_proto::delta::{BodyModels, Delta, Split, predicted_code};
 use relief_proto::tree::NodeId;
 use relief_proto::view::ViewState;
 use std::cmp::Ordering;
@@ -141,13 +141,15 @@ fn candidate(
 
 /// One update of `cut` for `view` whose packed body stays within `max_body_bytes`: the full
 /// pass's merges, then the splits worth the most screen error per byte that fit. The body
-/// exceeds the budget only when the merges and a single split do.
+/// exceeds the budget only when the merges and a single split do. `models` are the connection's
+/// body models as they will pack this delta: sizes are measured with copies of them.
 pub fn budgeted_update(
     engine: &VertexEngine<'_>,
     cut: &mut Cut,
     view: &ViewState,
     p: &LodParams,
     max_body_bytes: usize,
+    models: &BodyModels,
     seq: u64,
 ) -> BudgetedDelta {
     let geom = engine.geometry();
@@ -178,7 +180,10 @@ pub fn budgeted_update(
 
     // Greedy splits while the estimate fits; the first one regardless.
     let budget_bits = (max_body_bytes as u64).saturating_mul(8);
-    let mut bits = delta.pack_body(shape, geom.z_quantum).len() as u64 * 8;
+    let mut bits = delta
+        .pack_body_in(&mut models.clone(), geom.z_quantum)
+        .len() as u64
+        * 8;
     let mut levels = 0u64;
     let mut taken: Vec<Split> = Vec::new();
     while let Some(top) = heap.peek() {
@@ -213,7 +218,9 @@ pub fn budgeted_update(
     let packed = |delta: &mut Delta, splits: &[Split]| {
         delta.splits.clear();
         delta.splits.extend_from_slice(splits);
-        delta.pack_body(shape, geom.z_quantum).len()
+        delta
+            .pack_body_in(&mut models.clone(), geom.z_quantum)
+            .len()
     };
     let mut bytes = packed(&mut delta, &taken);
     if bytes > max_body_bytes && taken.len() > 1 {
@@ -284,16 +291,19 @@ mod tests {
             .apply(geom, &engine.full_delta(&cut, 0), |_, _| {})
             .unwrap();
         let (mut incomplete, mut was_complete) = (0, false);
+        let (mut server, mut client) = (BodyModels::new(), BodyModels::new());
         for seq in 1..20_000 {
-            let b = budgeted_update(engine, &mut cut, view, p, budget, seq);
-            let wire = WireDelta::pack(&b.delta, &geom.shape, geom.z_quantum);
+            let b = budgeted_update(engine, &mut cut, view, p, budget, &server, seq);
+            let wire = WireDelta::pack_in(&b.delta, &mut server, geom.z_quantum);
             assert_eq!(wire.body.len(), b.bytes);
             assert!(
                 b.bytes <= budget || b.delta.splits.len() <= 1,
                 "{} > {budget}",
                 b.bytes
             );
-            let back = wire.unpack(&geom.shape, geom.z_quantum).unwrap();
+            let back = wire
+                .unpack_in(&geom.shape, geom.z_quantum, &mut client)
+                .unwrap();
             mirror.apply(geom, &back, |_, _| {}).unwrap();
             assert_eq!(mirror.cut().digest(), cut.digest());
             assert!(!was_complete || b.complete, "complete, then not");
@@ -322,13 +332,15 @@ mod tests {
             let v0 = ViewState::new(&camera(w, h, poses[0]), &lens());
             let mut full = engine.initial_cut(&v0, &p, &mut st);
             let mut budgeted = full.clone();
+            let mut models = BodyModels::new();
             for (i, t) in poses.iter().enumerate() {
                 let view = ViewState::new(&camera(w, h, *t), &lens());
                 let d = engine.update(&mut full, &view, &p, i as u64, &mut st);
-                let b = budgeted_update(&engine, &mut budgeted, &view, &p, usize::MAX, i as u64);
+                let b = budgeted_update(&engine, &mut budgeted, &view, &p, usize::MAX, &models,
+                                        i as u64);
                 prop_assert!(b.complete);
                 let geom = engine.geometry();
-                prop_assert_eq!(b.bytes, d.pack_body(&geom.shape, geom.z_quantum).len());
+                prop_assert_eq!(b.bytes, d.pack_body_in(&mut models, geom.z_quantum).len());
                 prop_assert_eq!(b.delta, d);
             }
         }
@@ -366,7 +378,7 @@ mod tests {
             let mut cut = before;
             for seq in 1..4 {
                 let before = cut.clone();
-                let r = budgeted_update(&engine, &mut cut, &view, &p, budget, seq);
+                let r = budgeted_update(&engine, &mut cut, &view, &p, budget, &BodyModels::new(), seq);
                 // Nodes in the heap from the start: those active before the call. Each taken one
                 // was popped while every deferred one waited in the heap.
                 let taken = r.delta.splits.iter()
@@ -395,7 +407,7 @@ mod tests {
         let root = Cut::root(&engine.geometry().shape);
         let target = settle(&engine, root.clone(), &view, &p);
         let mut cut = root.clone();
-        let first = budgeted_update(&engine, &mut cut, &view, &p, 0, 1);
+        let first = budgeted_update(&engine, &mut cut, &view, &p, 0, &BodyModels::new(), 1);
         assert_eq!(first.delta.splits.len(), 1);
         assert_eq!(first.delta.splits[0].node, NodeId::ROOT);
         assert!(!first.complete);
@@ -416,8 +428,13 @@ mod tests {
         for (t, budget) in poses.into_iter().zip([100, 2000]) {
             let view = ViewState::new(&camera(w, h, t), &lens());
             let mut cut = Cut::root(&engine.geometry().shape);
+            let mut models = BodyModels::new();
             for seq in 0..4 {
-                let b = budgeted_update(&engine, &mut cut, &view, &p, budget, seq);
+                let b = budgeted_update(&engine, &mut cut, &view, &p, budget, &models, seq);
+                let body = b
+                    .delta
+                    .pack_body_in(&mut models, engine.geometry().z_quantum);
+                assert_eq!(body.len(), b.bytes);
                 assert!(!b.complete);
                 assert!(
                     b.bytes <= budget && b.bytes * 4 >= budget * 3,

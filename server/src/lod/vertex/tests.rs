@@ -7,7 +7,7 @@ use crate::store::{Store, StoreInput, StoreMeta, write_store};
 use glam::Vec3;
 use proptest::prelude::*;
 use relief_proto::cut::Cut;
-use relief_proto::delta::Delta;
+use relief_proto::delta::{BodyModels, Delta};
 use relief_proto::mirror::{Mirror, MirrorError};
 use relief_proto::msg::WireDelta;
 use relief_proto::tree::NodeId;
@@ -131,13 +131,16 @@ proptest! {
         let mut cut = engine.initial_cut(&v0, &p, &mut st);
         prop_assert_eq!(active_set(&cut, &geom.shape), bottom_up(&engine, &v0, p.tau));
         let mut mirror = Mirror::new(geom, s.root_z());
-        let first = WireDelta::pack(&engine.full_delta(&cut, 0), &geom.shape, geom.z_quantum);
-        mirror.apply(geom, &first.unpack(&geom.shape, geom.z_quantum).unwrap(), |_, _| {}).unwrap();
+        // One connection: the body models carry from delta to delta on both ends.
+        let (mut server, mut client) = (BodyModels::new(), BodyModels::new());
+        let first = WireDelta::pack_in(&engine.full_delta(&cut, 0), &mut server, geom.z_quantum);
+        let first = first.unpack_in(&geom.shape, geom.z_quantum, &mut client).unwrap();
+        mirror.apply(geom, &first, |_, _| {}).unwrap();
         for (i, t) in poses.iter().enumerate() {
             let view = ViewState::new(&camera(w, h, *t), &lens());
             let d = engine.update(&mut cut, &view, &p, i as u64 + 1, &mut st);
-            let wire = WireDelta::pack(&d, &geom.shape, geom.z_quantum);
-            let back = wire.unpack(&geom.shape, geom.z_quantum).unwrap();
+            let wire = WireDelta::pack_in(&d, &mut server, geom.z_quantum);
+            let back = wire.unpack_in(&geom.shape, geom.z_quantum, &mut client).unwrap();
             prop_assert_eq!(&back, &d);
             mirror.apply(geom, &back, |_, _| {}).unwrap();
             prop_assert_eq!(active_set(mirror.cut(), &geom.shape), active_set(&cut, &geom.shape));
