@@ -195,10 +195,12 @@ impl ViewState {
     /// four children of a node are evaluated together.
     #[inline]
     pub fn box_views4(&self, b: &[Aabb; 4]) -> [BoxView; 4] {
-        // Generic, not `&dyn Fn`: the lanes must inline to vectorise, whatever the caller.
+        // Generic, not `&dyn Fn`, and four plain calls, not `std::array::from_fn` (whose
+        // closures go through `try_from_fn` and were inlined or not depending on unrelated code
+        // in the caller's crate): the lanes must inline to vectorise, whatever the caller.
         #[inline(always)]
         fn lanes(f: impl Fn(usize) -> f32) -> [f32; 4] {
-            std::array::from_fn(f)
+            [f(0), f(1), f(2), f(3)]
         }
         let (e, f) = (self.eye, self.forward);
         let lo = [
@@ -226,12 +228,13 @@ impl ViewState {
         let (nx, ny, nz) = (near(0, f.x), near(1, f.y), near(2, f.z));
         let far = |a: usize| lanes(|i| lo[a][i].abs().max(hi[a][i].abs()));
         let (fx, fy, fz) = (far(0), far(1), far(2));
-        std::array::from_fn(|i| BoxView {
+        let view = |i: usize| BoxView {
             margin: margin[i],
             depth: f.x * nx[i] + f.y * ny[i] + f.z * nz[i],
             r_max: (fx[i] * fx[i] + fy[i] * fy[i]).sqrt(),
             d_max: (fx[i] * fx[i] + fy[i] * fy[i] + fz[i] * fz[i]).sqrt(),
-        })
+        };
+        [view(0), view(1), view(2), view(3)]
     }
 
     /// Screen error from a box's view terms: see the module docs.
