@@ -134,8 +134,8 @@ pub struct LodBenchReport {
     /// under the body coder's contexts, bytes per split: what these contexts allow any coder
     /// (issue 11; [`relief_proto::delta::SplitEntropy`]).
     pub split_entropy_bytes: f64,
-    /// The same with the merge positions added, per split: the least that bodies in these
-    /// contexts can cost, against `split_bytes_mean`
+    /// The same with the merge positions added, per split: what one static model per context,
+    /// fitted to the whole run, would spend on the bodies
     /// ([`relief_proto::delta::SplitEntropy::delta_bytes_per_split`]).
     pub delta_entropy_bytes: f64,
     /// Wire bytes of the session's first delta.
