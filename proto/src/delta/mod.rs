@@ -241,7 +241,7 @@ impl Delta {
 }
 
 /// The adaptive models of a connection's delta bodies (docs/protocol.md section 5.2): fresh at
-/// its first delta, then carried from each body to the next. About 16 KB, all in place: a
+/// its first delta, then carried from each body to the next. About 27 KB, all in place: a
 /// one-shot body, even one of garbage, allocates nothing but its entries.
 #[derive(Clone, Debug)]
 pub struct BodyModels {
@@ -448,6 +448,17 @@ mod tests {
             let shape = TreeShape::new(33, 20).unwrap();
             let _ = Delta::unpack_body(&shape, 0.25, 0, 0, &bytes);
         }
+    }
+
+    /// A session keeps its models for the connection's life: they must stay small (docs say
+    /// 27 KB; session memory is counted per active node).
+    #[test]
+    fn a_connection_s_models_stay_small() {
+        assert!(
+            size_of::<BodyModels>() <= 27 * 1024,
+            "{}",
+            size_of::<BodyModels>()
+        );
     }
 
     #[test]
