@@ -18,11 +18,11 @@ use relief_proto::msg::ServerMsg;
 use relief_proto::terrain::TerrainGeometry;
 use std::time::Instant;
 
-fn unwire(bytes: &[u8], geom: &TerrainGeometry, models: &mut BodyModels) -> Delta {
+fn unwire(bytes: &[u8], geom: &TerrainGeometry, models: &mut BodyModels, mirror: &Mirror) -> Delta {
     match codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT).expect("decodes") {
         ServerMsg::Delta(d) => d
             .delta
-            .unpack_in(&geom.shape, geom.z_quantum, models)
+            .unpack_in(&geom.shape, geom.z_quantum, models, mirror)
             .expect("unpacks"),
         other => panic!("expected a delta, got {other:?}"),
     }
@@ -39,7 +39,7 @@ fn pose(
     models: &mut BodyModels,
     stages: &str,
 ) -> usize {
-    let d = unwire(msg, geom, models);
+    let d = unwire(msg, geom, models, mirror);
     let shape = &geom.shape;
     match stages {
         "decode" => {}
@@ -79,9 +79,8 @@ fn main() {
     for _ in 0..runs {
         let mut mirror = Mirror::new(&geom, root_z);
         let mut models = BodyModels::new();
-        mirror
-            .apply(&geom, &unwire(msgs[0], &geom, &mut models), |_, _| {})
-            .expect("initial cut");
+        let first = unwire(msgs[0], &geom, &mut models, &mirror);
+        mirror.apply(&geom, &first, |_, _| {}).expect("initial cut");
         let mut mesh = FanMesh::new(shape, mirror.cut());
         let mut us = Vec::with_capacity(msgs.len());
         changes = 0;
@@ -99,10 +98,12 @@ fn main() {
                 "mesh differs"
             );
             eprintln!(
-                "final cut: {} triangles, {} junction cells, {} active nodes",
+                "final cut: {} triangles, {} junction cells, {} active nodes; {:.2} cells \
+                 recomputed per change (the initial mesh's included)",
                 mesh.triangle_count(),
                 mesh.cells().len(),
-                mirror.cut().active_count()
+                mirror.cut().active_count(),
+                mesh.work() as f64 / changes as f64,
             );
         }
         let total = |v: &[f64]| v.iter().sum::<f64>();

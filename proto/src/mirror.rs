@@ -5,7 +5,7 @@
 //! client does.
 
 use crate::cut::{Cut, CutError};
-use crate::delta::Delta;
+use crate::delta::{Delta, Parents, quad_details};
 use crate::haar::inverse;
 use crate::paged::Paged;
 use crate::terrain::TerrainGeometry;
@@ -197,6 +197,21 @@ impl Mirror {
             });
         }
         Ok(())
+    }
+}
+
+/// A body's splits are predicted from the mirror's parents (docs/protocol.md section 5.4): an
+/// interior node's details come back from its children's heights.
+impl Parents for Mirror {
+    fn details(&self, node: NodeId) -> Option<[i32; 3]> {
+        if !self.shape.contains(node) {
+            return None;
+        }
+        let c = self
+            .children
+            .get(node.level as usize)?
+            .get(node.x, node.y)?;
+        Some(quad_details(&self.shape, node, c.z))
     }
 }
 

@@ -8,7 +8,7 @@
 //! [`Welcome::max_in_flight`] deltas are unacknowledged at any time.
 
 use crate::codec::{Decode, Encode};
-use crate::delta::{BodyError, BodyModels, Delta};
+use crate::delta::{BodyError, BodyModels, Delta, Parents};
 use crate::query::{AnswerBatch, BatchRefused, QueryBatch};
 use crate::snapshot::Snapshot;
 use crate::terrain::TerrainGeometry;
@@ -18,7 +18,7 @@ use crate::view::{Camera, Lens};
 
 /// The protocol version this crate speaks. A hello with another version is refused with
 /// [`CloseReason::Version`].
-pub const PROTOCOL_VERSION: u32 = 4;
+pub const PROTOCOL_VERSION: u32 = 5;
 
 /// Which stream a session receives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Encode, Decode)]
@@ -216,28 +216,45 @@ pub struct WireDelta {
 }
 
 impl WireDelta {
-    /// Packs `delta` into a body that decodes on its own (fresh models: a one-shot delta) for a
-    /// terrain of shape `shape` and z quantum `quantum`.
-    pub fn pack(delta: &Delta, shape: &TreeShape, quantum: f32) -> WireDelta {
+    /// Packs `delta` into a body with fresh models (a one-shot delta) for a terrain of shape
+    /// `shape` and z quantum `quantum`; `parents` as the receiver holds them ([`Parents`]).
+    pub fn pack(
+        delta: &Delta,
+        shape: &TreeShape,
+        quantum: f32,
+        parents: &dyn Parents,
+    ) -> WireDelta {
         WireDelta {
             seq: delta.seq,
             digest: delta.digest,
-            body: delta.pack_body(shape, quantum),
+            body: delta.pack_body(shape, quantum, parents),
         }
     }
 
     /// Packs the next delta of a connection with its body models ([`BodyModels`]).
-    pub fn pack_in(delta: &Delta, models: &mut BodyModels, quantum: f32) -> WireDelta {
+    pub fn pack_in(
+        delta: &Delta,
+        shape: &TreeShape,
+        models: &mut BodyModels,
+        quantum: f32,
+        parents: &dyn Parents,
+    ) -> WireDelta {
         WireDelta {
             seq: delta.seq,
             digest: delta.digest,
-            body: delta.pack_body_in(models, quantum),
+            body: delta.pack_body_in(shape, models, quantum, parents),
         }
     }
 
-    /// Unpacks a body that decodes on its own (a one-shot delta) against the terrain.
-    pub fn unpack(&self, shape: &TreeShape, quantum: f32) -> Result<Delta, BodyError> {
-        Delta::unpack_body(shape, quantum, self.seq, self.digest, &self.body)
+    /// Unpacks a one-shot delta (fresh models) against the terrain, predicting from `parents`
+    /// (the receiver's mirror, [`Parents`]).
+    pub fn unpack(
+        &self,
+        shape: &TreeShape,
+        quantum: f32,
+        parents: &dyn Parents,
+    ) -> Result<Delta, BodyError> {
+        Delta::unpack_body(shape, quantum, self.seq, self.digest, &self.body, parents)
     }
 
     /// Unpacks the next delta of a connection with its body models ([`BodyModels`]).
@@ -246,8 +263,17 @@ impl WireDelta {
         shape: &TreeShape,
         quantum: f32,
         models: &mut BodyModels,
+        parents: &dyn Parents,
     ) -> Result<Delta, BodyError> {
-        Delta::unpack_body_in(shape, quantum, self.seq, self.digest, &self.body, models)
+        Delta::unpack_body_in(
+            shape,
+            quantum,
+            self.seq,
+            self.digest,
+            &self.body,
+            models,
+            parents,
+        )
     }
 }
 

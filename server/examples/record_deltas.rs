@@ -55,7 +55,7 @@ fn main() -> anyhow::Result<()> {
         let bytes = codec::encode(&ServerMsg::Delta(SessionDelta {
             pose_seq: delta.seq,
             complete: true,
-            delta: WireDelta::pack_in(delta, &mut models, geom.z_quantum),
+            delta: WireDelta::pack_in(delta, s, &mut models, geom.z_quantum, &engine),
         }));
         file.write_all(&(bytes.len() as u32).to_le_bytes())?;
         Ok(file.write_all(&bytes)?)

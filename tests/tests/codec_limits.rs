@@ -7,7 +7,7 @@
 
 use proptest::prelude::*;
 use relief_proto::codec::{HARD_LIMIT, decode};
-use relief_proto::delta::Delta;
+use relief_proto::delta::{Delta, NoParents};
 use relief_proto::msg::{ClientMsg, ServerMsg};
 use relief_proto::tree::TreeShape;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -58,7 +58,7 @@ proptest! {
     #[test]
     fn random_bodies_stay_within_their_size(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
         let shape = TreeShape::new(4097, 4097).unwrap();
-        let peak = largest_during(|| { let _ = Delta::unpack_body(&shape, 0.1, 0, 0, &bytes); });
+        let peak = largest_during(|| { let _ = Delta::unpack_body(&shape, 0.1, 0, 0, &bytes, &NoParents); });
         // At most one entry per bit of input, of a few dozen bytes each.
         prop_assert!(peak <= 64 * 8 * bytes.len().max(1), "allocated {} bytes", peak);
     }

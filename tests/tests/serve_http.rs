@@ -42,7 +42,10 @@ async fn one_shot_round_trips_from_the_root_and_from_a_base_cut() {
             }),
         };
         let resp = one_shot(&base, &req).await.unwrap();
-        let delta = resp.delta.unpack(&geom.shape, geom.z_quantum).unwrap();
+        let delta = resp
+            .delta
+            .unpack(&geom.shape, geom.z_quantum, &mirror)
+            .unwrap();
         merges += delta.merges.len();
         // The mirror applies the delta and lands on the server's cut: digests checked inside.
         mirror.apply(&geom, &delta, |_, _| {}).unwrap();

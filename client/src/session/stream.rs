@@ -119,7 +119,7 @@ impl StreamState {
         match self {
             StreamState::Vertex(v) => {
                 let delta = wire
-                    .unpack_in(&geom.shape, geom.z_quantum, &mut v.models)
+                    .unpack_in(&geom.shape, geom.z_quantum, &mut v.models, &v.mirror)
                     .map_err(|e| format!("bad delta: {e}"))?;
                 let shape = &geom.shape;
                 let (mesh, changes) = (&mut v.mesh, &mut v.changes);

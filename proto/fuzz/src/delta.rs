@@ -15,7 +15,7 @@
 
 use crate::Header;
 use relief_proto::cut::{Cut, node_hash};
-use relief_proto::delta::{Delta, Split, predicted_code, wire_key};
+use relief_proto::delta::{Delta, NoParents, Split, predicted_code, wire_key};
 use relief_proto::haar::inverse;
 use relief_proto::mirror::Mirror;
 use relief_proto::snapshot::Snapshot;
@@ -41,7 +41,10 @@ pub fn check(data: &[u8]) -> bool {
         return false;
     };
     let shape = &geom.shape;
-    let Ok(delta) = Delta::unpack_body(shape, quantum, SEQ, 0, body) else {
+    // A client at its session's start: its mirror holds the root alone, which predicts nothing
+    // (splits are predicted from parents in the body).
+    let parents = Mirror::new(&geom, ROOT_Z);
+    let Ok(delta) = Delta::unpack_body(shape, quantum, SEQ, 0, body, &parents) else {
         return false;
     };
     let in_order = |keys: Vec<u64>| keys.windows(2).all(|w| w[0] < w[1]);
@@ -51,16 +54,17 @@ pub fn check(data: &[u8]) -> bool {
     assert!(in_order(
         delta.splits.iter().map(|s| wire_key(s.node)).collect()
     ));
-    let packed = delta.pack_body(shape, quantum);
+    let packed = delta.pack_body(shape, quantum, &parents);
     assert!(
         packed.len() <= body.len(),
         "re-packing grew {} bytes to {}",
         body.len(),
         packed.len()
     );
-    let again = Delta::unpack_body(shape, quantum, SEQ, 0, &packed).expect("a packed body");
+    let again =
+        Delta::unpack_body(shape, quantum, SEQ, 0, &packed, &parents).expect("a packed body");
     assert_eq!(again, delta);
-    assert_eq!(again.pack_body(shape, quantum), packed);
+    assert_eq!(again.pack_body(shape, quantum, &parents), packed);
     apply(&geom, quantum, delta);
     true
 }
@@ -129,8 +133,8 @@ fn apply(geom: &TerrainGeometry, quantum: f32, delta: Delta) {
         merges: delta.splits.iter().map(|s| s.node).collect(),
         splits: Vec::new(),
     };
-    let body = undo.pack_body(shape, quantum);
-    let wire = Delta::unpack_body(shape, quantum, undo.seq, undo.digest, &body);
+    let body = undo.pack_body(shape, quantum, &mirror);
+    let wire = Delta::unpack_body(shape, quantum, undo.seq, undo.digest, &body, &mirror);
     assert_eq!(wire.as_ref(), Ok(&undo));
     mirror
         .apply(geom, &undo, |_, _| {})
@@ -177,7 +181,7 @@ pub fn seeds() -> Vec<(String, Vec<u8>)> {
         let shape = TreeShape::new(w, h).expect("a small grid");
         let delta = splits_from_root(&shape, quantum, n);
         let name = format!("splits_{w}x{h}_{n}");
-        out.push((name, header.with(&delta.pack_body(&shape, quantum))));
+        out.push((name, header.with(&delta.pack_body(&shape, quantum, &NoParents))));
     }
     let shape = TreeShape::new(33, 20).expect("a small grid");
     let mut both = splits_from_root(&shape, 0.1, 5);
@@ -189,7 +193,7 @@ pub fn seeds() -> Vec<(String, Vec<u8>)> {
     };
     out.push((
         "merges_and_splits_33x20".into(),
-        header.with(&both.pack_body(&shape, 0.1)),
+        header.with(&both.pack_body(&shape, 0.1, &NoParents)),
     ));
     out
 }

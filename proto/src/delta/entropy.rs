@@ -6,8 +6,9 @@
 //! their values. An ideal coder with the same contexts and the whole run's statistics known in
 //! advance would spend, per symbol, the order-0 entropy of that context's symbols over the run.
 //! [`SplitEntropy`] tallies the symbols of every split of every delta it is given and sums:
-//! - **details**: zigzag-mapped, by value, with one context per level and component (`dv`, `dh`,
-//!   `dd`);
+//! - **details**: their residuals against the prediction from the parent's details (protocol 5,
+//!   [`super::predict`]), zigzag-mapped, by value, with one context per level and component
+//!   (`dv`, `dh`, `dd`);
 //! - **error residuals**: by value, one context;
 //! - **positions**: the level step by value, and the position value (Morton gap or code) as its
 //!   Exp-Golomb bucket (bit length of `v + 1`) plus the bits below the bucket's leading one at one
@@ -26,8 +27,10 @@
 //! position's leading one. On both benchmark terrains `split_bytes_mean` is below
 //! `delta_entropy_bytes`.
 
+use super::predict::{Parents, Predictor};
 use super::{Delta, morton, positions, predicted_code};
 use crate::bits::zigzag;
+use crate::tree::TreeShape;
 use rustc_hash::FxHashMap;
 
 /// The contexts of the tally.
@@ -68,8 +71,9 @@ pub struct SplitEntropy {
 }
 
 impl SplitEntropy {
-    /// Tallies the splits and merges of `delta`, coded with z quantum `quantum`.
-    pub fn add(&mut self, delta: &Delta, quantum: f32) {
+    /// Tallies the splits and merges of `delta`, coded with z quantum `quantum` and its details
+    /// predicted from `parents` as the body coder predicts them (the residuals are counted).
+    pub fn add(&mut self, delta: &Delta, shape: &TreeShape, quantum: f32, parents: &dyn Parents) {
         let mut merges: Vec<_> = delta.merges.iter().map(|&n| (n.level, morton(n))).collect();
         merges.sort_unstable();
         for (step, value) in positions(merges.into_iter()) {
@@ -90,9 +94,20 @@ impl SplitEntropy {
             self.count(Context::PositionBucket, bucket);
             self.raw_bits += bucket - 1;
         }
-        for &(level, _, s) in &splits {
-            for (i, d) in s.details.into_iter().enumerate() {
-                self.count(Context::Detail(level, i as u8), zigzag(d as i64));
+        let mut predictor = Predictor::new(parents);
+        for (k, &(level, _, s)) in splits.iter().enumerate() {
+            let predicted = predictor.predict(
+                shape,
+                k,
+                s.node,
+                |j| splits[j].2.node,
+                |j| splits[j].2.details,
+            );
+            for (i, (d, p)) in s.details.into_iter().zip(predicted).enumerate() {
+                self.count(
+                    Context::Detail(level, i as u8),
+                    zigzag(d.wrapping_sub(p) as i64),
+                );
             }
             let residual = zigzag(s.err_code as i64 - predicted_code(s.details, quantum) as i64);
             self.count(Context::Residual, residual);
@@ -139,7 +154,7 @@ impl SplitEntropy {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::delta::Split;
+    use crate::delta::{NoParents, Split};
     use crate::tree::{NodeId, TreeShape};
 
     /// A split of the level-3 node whose Morton code is `m`.
@@ -165,7 +180,7 @@ mod tests {
             ..Delta::default()
         };
         let mut e = SplitEntropy::default();
-        e.add(&d, 0.1);
+        e.add(&d, &TreeShape::new(65, 65).unwrap(), 0.1, &NoParents);
         assert_eq!(e.splits(), 8);
         // Steps {3, 0 x7} and buckets {1 x8}: H(steps) = 8 * h(1/8) bits, no raw bits.
         let h = (1.0f64 / 8.0) * 8f64.log2() + (7.0 / 8.0) * (8.0f64 / 7.0).log2();
@@ -187,8 +202,8 @@ mod tests {
             ..Delta::default()
         };
         let mut e = SplitEntropy::default();
-        e.add(&d, 0.1);
-        assert!(e.bytes_per_split() * 8.0 <= d.pack_body(&shape, 0.1).len() as f64);
+        e.add(&d, &TreeShape::new(65, 65).unwrap(), 0.1, &NoParents);
+        assert!(e.bytes_per_split() * 8.0 <= d.pack_body(&shape, 0.1, &NoParents).len() as f64);
         assert_eq!(e.delta_bytes_per_split(), e.bytes_per_split());
     }
 
@@ -199,7 +214,7 @@ mod tests {
             ..Delta::default()
         };
         let mut e = SplitEntropy::default();
-        e.add(&d, 0.1);
+        e.add(&d, &TreeShape::new(65, 65).unwrap(), 0.1, &NoParents);
         let splits_only = e.bytes_per_split();
         // Merges far apart: their gaps carry raw bits.
         d.merges = (0..4)
@@ -210,7 +225,7 @@ mod tests {
             })
             .collect();
         let mut e = SplitEntropy::default();
-        e.add(&d, 0.1);
+        e.add(&d, &TreeShape::new(65, 65).unwrap(), 0.1, &NoParents);
         assert_eq!(e.bytes_per_split(), splits_only);
         // Morton codes 0, 267, 1068, 1415: steps {6, 0, 0, 0}, values 0, 266, 800, 346 in
         // buckets {1, 9, 10, 9} with 0 + 8 + 9 + 8 raw bits.

@@ -18,10 +18,13 @@
 //!    level step from the previous node, then its Morton code: if the level is unchanged, as the
 //!    gap to the previous code minus one, else as is (a step model and a position model for the
 //!    merges, another two for the splits).
-//! 3. Per split, in the same order: its three details, each in the model of its level and
-//!    component, then the error code's residual against a prediction both ends compute from the
-//!    details alone (the code of the largest child-to-parent offset, which the node's error can
-//!    never be below), in one model.
+//! 3. Per split, in the same order: its three details as residuals against a prediction from
+//!    its parent's details (protocol 5, [`predict`]: half the parent's slopes, a quarter of its
+//!    twist), each in the model of its level and component, then the error code's residual
+//!    against a prediction both ends compute from the details alone (the code of the largest
+//!    child-to-parent offset, which the node's error can never be below), in one model. A
+//!    parent that splits in the same body is read from it; any other is the receiver's, so
+//!    packing and unpacking take a [`Parents`]: the client's mirror, the server's store.
 //!
 //! A delta with neither merges nor splits has the empty body (no bytes).
 //!
@@ -36,8 +39,11 @@
 //! benchmark (issue 11, "Bytes").
 
 mod entropy;
+mod predict;
 
 pub use entropy::SplitEntropy;
+use predict::Predictor;
+pub use predict::{NoParents, Parents, quad_details};
 
 use crate::bits::{unzigzag, zigzag};
 use crate::haar::{error_code, inverse};
@@ -107,15 +113,22 @@ impl Delta {
         self.merges.is_empty() && self.splits.is_empty()
     }
 
-    /// Encodes merges and splits into a body that decodes on its own (fresh models: a one-shot
-    /// delta). `quantum` is the terrain's z quantum.
-    pub fn pack_body(&self, _shape: &TreeShape, quantum: f32) -> Vec<u8> {
-        self.pack_body_in(&mut BodyModels::new(), quantum)
+    /// Encodes merges and splits into a body with fresh models (a one-shot delta). `quantum` is
+    /// the terrain's z quantum; `parents` gives the details of split nodes' parents that do not
+    /// split in this delta, as the receiver holds them ([`Parents`]).
+    pub fn pack_body(&self, shape: &TreeShape, quantum: f32, parents: &dyn Parents) -> Vec<u8> {
+        self.pack_body_in(shape, &mut BodyModels::new(), quantum, parents)
     }
 
     /// Encodes merges and splits into the compact body with a connection's `models`, which it
     /// adapts: the next body of the connection continues from them.
-    pub fn pack_body_in(&self, models: &mut BodyModels, quantum: f32) -> Vec<u8> {
+    pub fn pack_body_in(
+        &self,
+        shape: &TreeShape,
+        models: &mut BodyModels,
+        quantum: f32,
+        parents: &dyn Parents,
+    ) -> Vec<u8> {
         if self.is_empty() {
             return Vec::new();
         }
@@ -139,9 +152,17 @@ impl Delta {
             e.value(&mut models.split_step, step as u64);
             e.value(&mut models.split_pos, v);
         }
-        for &(level, _, s) in &splits {
-            for (d, model) in s.details.iter().zip(models.details(level)) {
-                e.value(model, zigzag(*d as i64));
+        let mut predictor = Predictor::new(parents);
+        for (i, &(level, _, s)) in splits.iter().enumerate() {
+            let predicted = predictor.predict(
+                shape,
+                i,
+                s.node,
+                |k| splits[k].2.node,
+                |k| splits[k].2.details,
+            );
+            for ((d, p), model) in s.details.iter().zip(predicted).zip(models.details(level)) {
+                e.value(model, zigzag(d.wrapping_sub(p) as i64));
             }
             let residual = s.err_code as i64 - predicted_code(s.details, quantum) as i64;
             e.value(&mut models.residual, zigzag(residual));
@@ -149,15 +170,25 @@ impl Delta {
         e.finish()
     }
 
-    /// Decodes a body written by [`Delta::pack_body`] for the same terrain.
+    /// Decodes a body written by [`Delta::pack_body`] for the same terrain, with the same
+    /// `parents` (the receiver's: see [`Parents`]).
     pub fn unpack_body(
         shape: &TreeShape,
         quantum: f32,
         seq: u64,
         digest: u64,
         body: &[u8],
+        parents: &dyn Parents,
     ) -> Result<Delta, BodyError> {
-        Self::unpack_body_in(shape, quantum, seq, digest, body, &mut BodyModels::new())
+        Self::unpack_body_in(
+            shape,
+            quantum,
+            seq,
+            digest,
+            body,
+            &mut BodyModels::new(),
+            parents,
+        )
     }
 
     /// Decodes the next body of a connection, written by [`Delta::pack_body_in`], with the
@@ -170,6 +201,7 @@ impl Delta {
         digest: u64,
         body: &[u8],
         models: &mut BodyModels,
+        parents: &dyn Parents,
     ) -> Result<Delta, BodyError> {
         if body.is_empty() {
             return Ok(Delta {
@@ -214,11 +246,20 @@ impl Delta {
                 &mut prev,
             )?);
         }
-        for node in nodes {
+        let mut predictor = Predictor::new(parents);
+        for (i, &node) in nodes.iter().enumerate() {
+            let predicted =
+                predictor.predict(shape, i, node, |k| nodes[k], |k| delta.splits[k].details);
             let mut details = [0i32; 3];
-            for (d, model) in details.iter_mut().zip(models.details(node.level)) {
+            for ((d, p), model) in details
+                .iter_mut()
+                .zip(predicted)
+                .zip(models.details(node.level))
+            {
                 let v = r.value(model).ok_or(BodyError::Malformed)?;
-                *d = i32::try_from(unzigzag(v)).map_err(|_| BodyError::OutOfRange("detail"))?;
+                let residual =
+                    i32::try_from(unzigzag(v)).map_err(|_| BodyError::OutOfRange("detail"))?;
+                *d = p.wrapping_add(residual);
             }
             let res = r.value(&mut models.residual).ok_or(BodyError::Malformed)?;
             if r.overrun() {
@@ -296,13 +337,13 @@ fn reserve(n: u64) -> usize {
     n.min(RESERVE_MAX) as usize
 }
 
-/// The Morton (Z-order) code of a node within its level: x and y bits interleaved.
 /// A node's place in wire order as one integer: its level, then its Morton code within the level
 /// (codes take at most 30 bits).
 pub fn wire_key(n: NodeId) -> u64 {
     (n.level as u64) << 58 | morton(n)
 }
 
+/// The Morton (Z-order) code of a node within its level: x and y bits interleaved.
 pub(crate) fn morton(n: NodeId) -> u64 {
     spread(n.x) | (spread(n.y) << 1)
 }
@@ -416,8 +457,8 @@ mod tests {
         #[test]
         fn body_round_trips(d in arb_delta(TreeShape::new(300, 170).unwrap())) {
             let shape = TreeShape::new(300, 170).unwrap();
-            let body = d.pack_body(&shape, 0.25);
-            let back = Delta::unpack_body(&shape, 0.25, d.seq, d.digest, &body).unwrap();
+            let body = d.pack_body(&shape, 0.25, &NoParents);
+            let back = Delta::unpack_body(&shape, 0.25, d.seq, d.digest, &body, &NoParents).unwrap();
             let mut d = d;
             d.canonicalize();
             prop_assert_eq!(back, d);
@@ -434,9 +475,9 @@ mod tests {
             let shape = TreeShape::new(300, 170).unwrap();
             let (mut server, mut client) = (BodyModels::new(), BodyModels::new());
             for d in ds {
-                let body = d.pack_body_in(&mut server, 0.25);
+                let body = d.pack_body_in(&shape, &mut server, 0.25, &NoParents);
                 prop_assert_eq!(body.is_empty(), d.is_empty());
-                let back = Delta::unpack_body_in(&shape, 0.25, d.seq, d.digest, &body, &mut client);
+                let back = Delta::unpack_body_in(&shape, 0.25, d.seq, d.digest, &body, &mut client, &NoParents);
                 let mut d = d;
                 d.canonicalize();
                 prop_assert_eq!(back.unwrap(), d);
@@ -446,7 +487,7 @@ mod tests {
         #[test]
         fn random_bodies_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
             let shape = TreeShape::new(33, 20).unwrap();
-            let _ = Delta::unpack_body(&shape, 0.25, 0, 0, &bytes);
+            let _ = Delta::unpack_body(&shape, 0.25, 0, 0, &bytes, &NoParents);
         }
     }
 
@@ -470,7 +511,7 @@ mod tests {
         e.value(&mut counts, 0);
         let body = e.finish();
         assert_eq!(
-            Delta::unpack_body(&shape, 0.25, 0, 0, &body),
+            Delta::unpack_body(&shape, 0.25, 0, 0, &body, &NoParents),
             Err(BodyError::Malformed)
         );
     }
@@ -495,7 +536,7 @@ mod tests {
         let mut body = e.finish();
         body.resize(1 << 20, 0xA5);
         assert_eq!(
-            Delta::unpack_body(&shape, 0.25, 0, 0, &body),
+            Delta::unpack_body(&shape, 0.25, 0, 0, &body, &NoParents),
             Err(BodyError::UnknownNode(NodeId {
                 level: 0,
                 x: 1,
@@ -517,11 +558,11 @@ mod tests {
                 .collect(),
             ..Delta::default()
         };
-        let body = d.pack_body(&shape, 0.1);
+        let body = d.pack_body(&shape, 0.1, &NoParents);
         // (No bytes at all is the empty delta.)
         for n in 1..body.len() {
             assert_eq!(
-                Delta::unpack_body(&shape, 0.1, 0, 0, &body[..n]),
+                Delta::unpack_body(&shape, 0.1, 0, 0, &body[..n], &NoParents),
                 Err(BodyError::Malformed),
                 "{n} of {} bytes",
                 body.len()
@@ -542,19 +583,25 @@ mod tests {
                 details: [3, -4, 5],
             }],
         };
-        let body = d.pack_body(&shape, 0.1);
-        assert_eq!(Delta::unpack_body(&shape, 0.1, 1, 2, &body).unwrap(), d);
+        let body = d.pack_body(&shape, 0.1, &NoParents);
+        assert_eq!(
+            Delta::unpack_body(&shape, 0.1, 1, 2, &body, &NoParents).unwrap(),
+            d
+        );
         let mut longer = body.clone();
         longer.push(0);
         assert_eq!(
-            Delta::unpack_body(&shape, 0.1, 1, 2, &longer),
+            Delta::unpack_body(&shape, 0.1, 1, 2, &longer, &NoParents),
             Err(BodyError::Malformed)
         );
         let mut dirty = body.clone();
         let last = dirty.len() - 1;
         dirty[last] ^= 1;
         // The flush's bytes are part of the stream: a changed one changes or breaks the body.
-        assert_ne!(Delta::unpack_body(&shape, 0.1, 1, 2, &dirty), Ok(d));
+        assert_ne!(
+            Delta::unpack_body(&shape, 0.1, 1, 2, &dirty, &NoParents),
+            Ok(d)
+        );
     }
 }
 
@@ -577,9 +624,9 @@ mod doc_examples {
     }
 
     /// The models after packing `first` from fresh ones.
-    fn one_then(first: &Delta, q: f32) -> BodyModels {
+    fn one_then(shape: &TreeShape, first: &Delta, q: f32) -> BodyModels {
         let mut m = BodyModels::new();
-        first.pack_body_in(&mut m, q);
+        first.pack_body_in(shape, &mut m, q, &NoParents);
         m
     }
 
@@ -587,7 +634,11 @@ mod doc_examples {
     fn the_protocol_doc_bodies_are_what_the_code_sends() {
         let shape = TreeShape::new(5, 3).unwrap();
         let q = 0.5;
+        let geom = crate::terrain::TerrainGeometry::new(5, 3, 1.0, 1.0, q).unwrap();
+        let mut cut = crate::cut::Cut::root(&shape);
+        cut.split(&shape, NodeId::ROOT).unwrap();
         let one = Delta {
+            digest: cut.digest(),
             splits: vec![Split {
                 node: NodeId::ROOT,
                 err_code: 92,
@@ -618,10 +669,12 @@ mod doc_examples {
         assert_eq!(predicted_code([2, 5, 2], q), 86);
         assert_eq!(predicted_code([2, 0, 0], q), 64);
         let doc = include_str!("../../../docs/protocol.md");
-        assert!(Delta::default().pack_body(&shape, q).is_empty());
+        assert!(Delta::default().pack_body(&shape, q, &NoParents).is_empty());
         assert!(doc.contains("The empty delta has the empty body (no bytes)."));
-        // Deltas 1 and 2 are one connection's (its models carry over); the merge back is a
-        // one-shot delta (fresh models).
+        // Deltas 1 and 2 are one connection's (its models carry over, and delta 2's details are
+        // predicted from the root's, which the client holds after delta 1: both ends read them
+        // from the mirror here); the merge back is a one-shot delta (fresh models).
+        let mut mirror = crate::mirror::Mirror::new(&geom, 0);
         let mut models = [BodyModels::new(), BodyModels::new()];
         let mut decoders = [BodyModels::new(), BodyModels::new()];
         for (name, d, m) in [
@@ -629,18 +682,27 @@ mod doc_examples {
             ("delta 2", &two, 0),
             ("merge back", &back, 1),
         ] {
-            let body = d.pack_body_in(&mut models[m], q);
+            let body = d.pack_body_in(&shape, &mut models[m], q, &mirror);
             let want = format!("=> body {}", hex(&body));
             assert!(doc.contains(&want), "{name}: the document lacks {want:?}");
             let mut d = d.clone();
             d.canonicalize();
-            let back = Delta::unpack_body_in(&shape, q, 0, 0, &body, &mut decoders[m]);
+            let back =
+                Delta::unpack_body_in(&shape, q, 0, d.digest, &body, &mut decoders[m], &mirror);
             assert_eq!(back.unwrap(), d);
+            if name == "delta 1" {
+                mirror.apply(&geom, &d, |_, _| {}).unwrap();
+            }
         }
-        // Delta 2 alone, from fresh models, is another body: the models did carry over.
-        assert_ne!(
-            two.pack_body(&shape, q),
-            two.pack_body_in(&mut one_then(&one, q), q)
-        );
+        // The root's details predict delta 2's: [0 >> 1, 10 >> 1, 0 >> 2] = [0, 5, 0] for both
+        // level-1 nodes, so the first one's dh is sent as 0.
+        assert_eq!(mirror.details(NodeId::ROOT), Some([0, 10, 0]));
+        // Delta 2 alone, from fresh models and with no parents known, is another body: the
+        // models did carry over.
+        let carried = two.pack_body_in(&shape, &mut one_then(&shape, &one, q), q, &NoParents);
+        assert_ne!(two.pack_body(&shape, q, &NoParents), carried);
+        // And predicting from the root's details changed it too.
+        let predicted = two.pack_body_in(&shape, &mut one_then(&shape, &one, q), q, &mirror);
+        assert_ne!(carried, predicted);
     }
 }

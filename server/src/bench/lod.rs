@@ -197,10 +197,10 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
     let first = engine.full_delta(&paper_cut, 0);
     // The connection's body models, the server's and the client's (docs/protocol.md 5.2).
     let (mut server_models, mut client_models) = (BodyModels::new(), BodyModels::new());
-    let first_bytes = wire(&first, geom, &mut server_models);
+    let first_bytes = wire(&first, &engine, &mut server_models);
     let mut entropy = relief_proto::delta::SplitEntropy::default();
-    entropy.add(&first, geom.z_quantum);
-    let decoded = unwire(&first_bytes, geom, &mut client_models)?;
+    entropy.add(&first, &geom.shape, geom.z_quantum, &engine);
+    let decoded = unwire(&first_bytes, geom, &mut client_models, &mirror)?;
     mirror.apply(geom, &decoded, |_, _| {})?;
     let mut mesh = FanMesh::new(shape, mirror.cut());
 
@@ -214,9 +214,9 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         let mut st = UpdateStats::default();
         let t0 = Instant::now();
         let delta = session.update(&engine, &view, &p, f as u64, &mut st);
-        let bytes = wire(&delta, geom, &mut server_models);
+        let bytes = wire(&delta, &engine, &mut server_models);
         r.update_us.push(t0.elapsed().as_secs_f64() * 1e6);
-        entropy.add(&delta, geom.z_quantum);
+        entropy.add(&delta, &geom.shape, geom.z_quantum, &engine);
         r.visited.push(st.visited as f64);
 
         if opts.cross_checks {
@@ -236,7 +236,7 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         }
 
         let t0 = Instant::now();
-        let decoded = unwire(&bytes, geom, &mut client_models)?;
+        let decoded = unwire(&bytes, geom, &mut client_models, &mirror)?;
         match mirror.apply(geom, &decoded, |c, ch| {
             mesh.update_around(shape, c, ch.node())
         }) {
@@ -363,13 +363,14 @@ struct Accum {
 
 fn wire(
     delta: &relief_proto::delta::Delta,
-    geom: &TerrainGeometry,
+    engine: &VertexEngine,
     models: &mut BodyModels,
 ) -> Vec<u8> {
+    let geom = engine.geometry();
     codec::encode(&ServerMsg::Delta(SessionDelta {
         pose_seq: delta.seq,
         complete: true,
-        delta: WireDelta::pack_in(delta, models, geom.z_quantum),
+        delta: WireDelta::pack_in(delta, &geom.shape, models, geom.z_quantum, engine),
     }))
 }
 
@@ -377,9 +378,13 @@ fn unwire(
     bytes: &[u8],
     geom: &TerrainGeometry,
     models: &mut BodyModels,
+    mirror: &Mirror,
 ) -> anyhow::Result<relief_proto::delta::Delta> {
     match codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT)? {
-        ServerMsg::Delta(d) => Ok(d.delta.unpack_in(&geom.shape, geom.z_quantum, models)?),
+        ServerMsg::Delta(d) => {
+            Ok(d.delta
+                .unpack_in(&geom.shape, geom.z_quantum, models, mirror)?)
+        }
         other => anyhow::bail!("expected a delta, got {other:?}"),
     }
 }

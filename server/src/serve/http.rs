@@ -222,7 +222,7 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
         }
         let delta = diff_delta(&engine, &base, &target, 1);
         let resp = LodResponse {
-            delta: WireDelta::pack(&delta, shape, engine.geometry().z_quantum),
+            delta: WireDelta::pack(&delta, shape, engine.geometry().z_quantum, &engine),
             snapshot: Snapshot::of(shape, &target),
         };
         st.metrics.observe_update(started.elapsed().as_secs_f64());

@@ -153,7 +153,12 @@ impl Stream {
             seq,
             digest: delta.digest,
             complete,
-            body: delta.pack_body_in(self.models.get_or_insert_with(Box::default), g.z_quantum),
+            body: delta.pack_body_in(
+                &g.shape,
+                self.models.get_or_insert_with(Box::default),
+                g.z_quantum,
+                &VertexEngine::new(store),
+            ),
         }
     }
 

@@ -370,7 +370,7 @@ impl TileSession {
                     } => {
                         let delta = d
                             .delta
-                            .unpack_in(&geom.shape, geom.z_quantum, models)
+                            .unpack_in(&geom.shape, geom.z_quantum, models, &**mirror)
                             .map_err(|e| JsError::new(&format!("desync: bad delta: {e}")))?;
                         changes.clear();
                         mirror

@@ -181,7 +181,7 @@ pub fn budgeted_update(
     // Greedy splits while the estimate fits; the first one regardless.
     let budget_bits = (max_body_bytes as u64).saturating_mul(8);
     let mut bits = delta
-        .pack_body_in(&mut models.clone(), geom.z_quantum)
+        .pack_body_in(shape, &mut models.clone(), geom.z_quantum, engine)
         .len() as u64
         * 8;
     let mut levels = 0u64;
@@ -219,7 +219,7 @@ pub fn budgeted_update(
         delta.splits.clear();
         delta.splits.extend_from_slice(splits);
         delta
-            .pack_body_in(&mut models.clone(), geom.z_quantum)
+            .pack_body_in(shape, &mut models.clone(), geom.z_quantum, engine)
             .len()
     };
     let mut bytes = packed(&mut delta, &taken);
@@ -294,7 +294,8 @@ mod tests {
         let (mut server, mut client) = (BodyModels::new(), BodyModels::new());
         for seq in 1..20_000 {
             let b = budgeted_update(engine, &mut cut, view, p, budget, &server, seq);
-            let wire = WireDelta::pack_in(&b.delta, &mut server, geom.z_quantum);
+            let wire =
+                WireDelta::pack_in(&b.delta, &geom.shape, &mut server, geom.z_quantum, engine);
             assert_eq!(wire.body.len(), b.bytes);
             assert!(
                 b.bytes <= budget || b.delta.splits.len() <= 1,
@@ -302,7 +303,7 @@ mod tests {
                 b.bytes
             );
             let back = wire
-                .unpack_in(&geom.shape, geom.z_quantum, &mut client)
+                .unpack_in(&geom.shape, geom.z_quantum, &mut client, &mirror)
                 .unwrap();
             mirror.apply(geom, &back, |_, _| {}).unwrap();
             assert_eq!(mirror.cut().digest(), cut.digest());
@@ -340,7 +341,7 @@ mod tests {
                                         i as u64);
                 prop_assert!(b.complete);
                 let geom = engine.geometry();
-                prop_assert_eq!(b.bytes, d.pack_body_in(&mut models, geom.z_quantum).len());
+                prop_assert_eq!(b.bytes, d.pack_body_in(&geom.shape, &mut models, geom.z_quantum, &engine).len());
                 prop_assert_eq!(b.delta, d);
             }
         }
@@ -431,9 +432,12 @@ mod tests {
             let mut models = BodyModels::new();
             for seq in 0..4 {
                 let b = budgeted_update(&engine, &mut cut, &view, &p, budget, &models, seq);
-                let body = b
-                    .delta
-                    .pack_body_in(&mut models, engine.geometry().z_quantum);
+                let body = b.delta.pack_body_in(
+                    &engine.geometry().shape,
+                    &mut models,
+                    engine.geometry().z_quantum,
+                    &engine,
+                );
                 assert_eq!(body.len(), b.bytes);
                 assert!(!b.complete);
                 assert!(

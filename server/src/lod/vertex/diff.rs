@@ -72,8 +72,8 @@ pub(super) mod tests {
             .unwrap();
         // Tags on the server's side must not matter.
         let d = diff_delta(&engine, &from.tagged(&geom.shape), to, 1);
-        let back = WireDelta::pack(&d, &geom.shape, geom.z_quantum)
-            .unpack(&geom.shape, geom.z_quantum)
+        let back = WireDelta::pack(&d, &geom.shape, geom.z_quantum, &engine)
+            .unpack(&geom.shape, geom.z_quantum, &mirror)
             .unwrap();
         assert_eq!(back, d);
         mirror.apply(geom, &back, |_, _| {}).unwrap();

@@ -36,7 +36,7 @@ pub(crate) mod tests;
 use crate::store::Store;
 use crate::store::layout::{QuadLayout, rec_code, rec_z};
 use relief_proto::cut::Cut;
-use relief_proto::delta::{Delta, Split};
+use relief_proto::delta::{Delta, Parents, Split};
 use relief_proto::haar::{self, Presence, error_value};
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
@@ -83,6 +83,15 @@ pub struct VertexEngine<'s> {
     layout: &'s QuadLayout,
     /// Metres of each error code ([`error_value`]), without its lazy initialisation per call.
     errors: [f32; 256],
+}
+
+/// The server holds every node's height, so it predicts a body's splits from the store
+/// (docs/protocol.md section 5.4): the same details the client's mirror gives back.
+impl Parents for VertexEngine<'_> {
+    fn details(&self, node: NodeId) -> Option<[i32; 3]> {
+        let shape = &self.geom.shape;
+        (shape.contains(node) && !shape.is_leaf(node)).then(|| self.split_payload(node).details)
+    }
 }
 
 impl<'s> VertexEngine<'s> {
