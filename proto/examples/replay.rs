@@ -11,7 +11,7 @@
 //! runs between the client's.
 
 use relief_proto::codec;
-use relief_proto::delta::{BodyModels, Delta};
+use relief_proto::delta::{BodyModels, Delta, Known};
 use relief_proto::mesh::{FanMesh, oracle};
 use relief_proto::mirror::Mirror;
 use relief_proto::msg::ServerMsg;
@@ -22,7 +22,7 @@ fn unwire(bytes: &[u8], geom: &TerrainGeometry, models: &mut BodyModels, mirror:
     match codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT).expect("decodes") {
         ServerMsg::Delta(d) => d
             .delta
-            .unpack_in(&geom.shape, geom.z_quantum, models, mirror)
+            .unpack_in(&geom.shape, geom.z_quantum, models, Known::mirror(mirror))
             .expect("unpacks"),
         other => panic!("expected a delta, got {other:?}"),
     }

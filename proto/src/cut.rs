@@ -124,6 +124,17 @@ impl Cut {
         self.interior.contains(node)
     }
 
+    /// Number of interior nodes of `level` whose Morton code lies in `lo .. hi`.
+    pub fn interior_count_morton(&self, level: u8, lo: u64, hi: u64) -> u64 {
+        self.interior.count_morton(level, lo, hi)
+    }
+
+    /// The Morton code of the interior node of `level` with exactly `k` interior nodes of that
+    /// level from code `from` (inclusive) up to it, if there is one.
+    pub fn interior_select_morton(&self, level: u8, from: u64, k: u64) -> Option<u64> {
+        self.interior.select_morton(level, from, k)
+    }
+
     /// Which of `node`'s children are interior: bit `k` for child `k` ([`NodeId::child`]).
     #[inline]
     pub fn interior_children(&self, node: NodeId) -> u8 {

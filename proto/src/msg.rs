@@ -8,7 +8,7 @@
 //! [`Welcome::max_in_flight`] deltas are unacknowledged at any time.
 
 use crate::codec::{Decode, Encode};
-use crate::delta::{BodyError, BodyModels, Delta, Parents};
+use crate::delta::{BodyError, BodyModels, Delta, Known};
 use crate::query::{AnswerBatch, BatchRefused, QueryBatch};
 use crate::snapshot::Snapshot;
 use crate::terrain::TerrainGeometry;
@@ -217,17 +217,13 @@ pub struct WireDelta {
 
 impl WireDelta {
     /// Packs `delta` into a body with fresh models (a one-shot delta) for a terrain of shape
-    /// `shape` and z quantum `quantum`; `parents` as the receiver holds them ([`Parents`]).
-    pub fn pack(
-        delta: &Delta,
-        shape: &TreeShape,
-        quantum: f32,
-        parents: &dyn Parents,
-    ) -> WireDelta {
+    /// `shape` and z quantum `quantum`; `known`: the
+    /// parents and the cut after the delta ([`Known`]).
+    pub fn pack(delta: &Delta, shape: &TreeShape, quantum: f32, known: Known<'_>) -> WireDelta {
         WireDelta {
             seq: delta.seq,
             digest: delta.digest,
-            body: delta.pack_body(shape, quantum, parents),
+            body: delta.pack_body(shape, quantum, known),
         }
     }
 
@@ -237,24 +233,24 @@ impl WireDelta {
         shape: &TreeShape,
         models: &mut BodyModels,
         quantum: f32,
-        parents: &dyn Parents,
+        known: Known<'_>,
     ) -> WireDelta {
         WireDelta {
             seq: delta.seq,
             digest: delta.digest,
-            body: delta.pack_body_in(shape, models, quantum, parents),
+            body: delta.pack_body_in(shape, models, quantum, known),
         }
     }
 
-    /// Unpacks a one-shot delta (fresh models) against the terrain, predicting from `parents`
-    /// (the receiver's mirror, [`Parents`]).
+    /// Unpacks a one-shot delta (fresh models) against the terrain, against what the
+    /// receiver holds before it (`known`: [`Known::mirror`]).
     pub fn unpack(
         &self,
         shape: &TreeShape,
         quantum: f32,
-        parents: &dyn Parents,
+        known: Known<'_>,
     ) -> Result<Delta, BodyError> {
-        Delta::unpack_body(shape, quantum, self.seq, self.digest, &self.body, parents)
+        Delta::unpack_body(shape, quantum, self.seq, self.digest, &self.body, known)
     }
 
     /// Unpacks the next delta of a connection with its body models ([`BodyModels`]).
@@ -263,7 +259,7 @@ impl WireDelta {
         shape: &TreeShape,
         quantum: f32,
         models: &mut BodyModels,
-        parents: &dyn Parents,
+        known: Known<'_>,
     ) -> Result<Delta, BodyError> {
         Delta::unpack_body_in(
             shape,
@@ -272,7 +268,7 @@ impl WireDelta {
             self.digest,
             &self.body,
             models,
-            parents,
+            known,
         )
     }
 }

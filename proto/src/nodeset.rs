@@ -18,6 +18,8 @@
 
 use crate::tree::{NodeId, TreeShape};
 
+mod morton;
+
 /// log2 of a page's side in nodes.
 const PAGE_SHIFT: u32 = 4;
 /// log2 of a superpage's side in nodes.

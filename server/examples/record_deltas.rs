@@ -51,22 +51,29 @@ fn main() -> anyhow::Result<()> {
     file.write_all(&store.root_z().to_le_bytes())?;
     // One connection: the body models carry from each delta to the next.
     let mut models = relief_proto::delta::BodyModels::new();
-    let mut write = |delta: &relief_proto::delta::Delta| -> anyhow::Result<()> {
+    // Each body is packed against the session's cut after it.
+    let mut write = |delta: &relief_proto::delta::Delta,
+                     after: &relief_proto::cut::Cut|
+     -> anyhow::Result<()> {
+        let known = relief_proto::delta::Known {
+            parents: &engine,
+            cut: after,
+        };
         let bytes = codec::encode(&ServerMsg::Delta(SessionDelta {
             pose_seq: delta.seq,
             complete: true,
-            delta: WireDelta::pack_in(delta, s, &mut models, geom.z_quantum, &engine),
+            delta: WireDelta::pack_in(delta, s, &mut models, geom.z_quantum, known),
         }));
         file.write_all(&(bytes.len() as u32).to_le_bytes())?;
         Ok(file.write_all(&bytes)?)
     };
-    write(&engine.full_delta(&session.cut(), 0))?;
+    write(&engine.full_delta(session.cut_ref(), 0), session.cut_ref())?;
     let mut changes = 0;
     for (f, cam) in flight.cams.iter().enumerate().skip(1).take(frames) {
         let view = ViewState::new(cam, &lens);
         let d = session.update(&engine, &view, &p, f as u64, &mut UpdateStats::default());
         changes += d.splits.len() + d.merges.len();
-        write(&d)?;
+        write(&d, session.cut_ref())?;
     }
     file.flush()?;
     eprintln!(

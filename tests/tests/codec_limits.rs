@@ -7,7 +7,8 @@
 
 use proptest::prelude::*;
 use relief_proto::codec::{HARD_LIMIT, decode};
-use relief_proto::delta::{Delta, NoParents};
+use relief_proto::cut::Cut;
+use relief_proto::delta::{Delta, Known, NoParents};
 use relief_proto::msg::{ClientMsg, ServerMsg};
 use relief_proto::tree::TreeShape;
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -58,7 +59,9 @@ proptest! {
     #[test]
     fn random_bodies_stay_within_their_size(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
         let shape = TreeShape::new(4097, 4097).unwrap();
-        let peak = largest_during(|| { let _ = Delta::unpack_body(&shape, 0.1, 0, 0, &bytes, &NoParents); });
+        let root = Cut::root(&shape);
+        let known = Known { parents: &NoParents, cut: &root };
+        let peak = largest_during(|| { let _ = Delta::unpack_body(&shape, 0.1, 0, 0, &bytes, known); });
         // At most one entry per bit of input, of a few dozen bytes each.
         prop_assert!(peak <= 64 * 8 * bytes.len().max(1), "allocated {} bytes", peak);
     }

@@ -3,6 +3,7 @@
 
 use relief_client::http::{HttpError, get_json, post_json, request};
 use relief_proto::codec;
+use relief_proto::delta::Known;
 use relief_proto::mirror::Mirror;
 use relief_proto::msg::{LodRequest, LodResponse, PROTOCOL_VERSION, Resume, WireCamera};
 use relief_proto::view::Lens;
@@ -44,7 +45,7 @@ async fn one_shot_round_trips_from_the_root_and_from_a_base_cut() {
         let resp = one_shot(&base, &req).await.unwrap();
         let delta = resp
             .delta
-            .unpack(&geom.shape, geom.z_quantum, &mirror)
+            .unpack(&geom.shape, geom.z_quantum, Known::mirror(&mirror))
             .unwrap();
         merges += delta.merges.len();
         // The mirror applies the delta and lands on the server's cut: digests checked inside.

@@ -4,7 +4,7 @@
 //! acknowledgements in `session.rs` are the same for both.
 
 use super::types::ClientError;
-use relief_proto::delta::BodyModels;
+use relief_proto::delta::{BodyModels, Known};
 use relief_proto::mesh::FanMesh;
 use relief_proto::mirror::{Change, Mirror};
 use relief_proto::msg::{CrackMode, TileStreamParams, Welcome, WireDelta};
@@ -119,7 +119,12 @@ impl StreamState {
         match self {
             StreamState::Vertex(v) => {
                 let delta = wire
-                    .unpack_in(&geom.shape, geom.z_quantum, &mut v.models, &v.mirror)
+                    .unpack_in(
+                        &geom.shape,
+                        geom.z_quantum,
+                        &mut v.models,
+                        Known::mirror(&v.mirror),
+                    )
                     .map_err(|e| format!("bad delta: {e}"))?;
                 let shape = &geom.shape;
                 let (mesh, changes) = (&mut v.mesh, &mut v.changes);

@@ -1,9 +1,12 @@
 //! Target `delta`: a [`Header`] (grid size; the parameter picks the z quantum) and then a vertex
 //! delta body, decoded with [`Delta::unpack_body`] as a client does.
 //!
-//! A body that decodes must list its merges and its splits in strict wire order; re-packed it
-//! must be no longer than the input (the packer picks the shortest orders) and unpack to the
-//! same delta, and re-packing that gives the same bytes.
+//! A body that decodes against a mirror of the root (which has no merges, since a merge is a
+//! rank among the receiver's interior nodes) must list its splits in strict wire order;
+//! re-packed it must be no longer than the input and unpack to the same delta, and re-packing
+//! that gives the same bytes. The body is also decoded against a cut whose nodes down to level
+//! 3 are all interior, where merges decode: a delta that applies there must round-trip through
+//! the cut after it.
 //!
 //! The delta is then applied to a [`Mirror`] holding the root, with the digest of a shadow
 //! [`Cut`] that made the same splits and merges: the mirror must accept it exactly when the
@@ -15,7 +18,7 @@
 
 use crate::Header;
 use relief_proto::cut::{Cut, node_hash};
-use relief_proto::delta::{Delta, NoParents, Split, predicted_code, wire_key};
+use relief_proto::delta::{Delta, Known, NoParents, Split, predicted_code, wire_key};
 use relief_proto::haar::inverse;
 use relief_proto::mirror::Mirror;
 use relief_proto::snapshot::Snapshot;
@@ -41,11 +44,13 @@ pub fn check(data: &[u8]) -> bool {
         return false;
     };
     let shape = &geom.shape;
+    let deeper = against_a_deeper_cut(shape, quantum, body);
     // A client at its session's start: its mirror holds the root alone, which predicts nothing
-    // (splits are predicted from parents in the body).
+    // (splits are predicted from parents in the body) and has no interior node to merge.
     let parents = Mirror::new(&geom, ROOT_Z);
-    let Ok(delta) = Delta::unpack_body(shape, quantum, SEQ, 0, body, &parents) else {
-        return false;
+    let known = Known::mirror(&parents);
+    let Ok(delta) = Delta::unpack_body(shape, quantum, SEQ, 0, body, known) else {
+        return deeper;
     };
     let in_order = |keys: Vec<u64>| keys.windows(2).all(|w| w[0] < w[1]);
     assert!(in_order(
@@ -54,19 +59,73 @@ pub fn check(data: &[u8]) -> bool {
     assert!(in_order(
         delta.splits.iter().map(|s| wire_key(s.node)).collect()
     ));
-    let packed = delta.pack_body(shape, quantum, &parents);
+    // Only merges read the cut, and none decodes against the root alone: the cut before
+    // serves as the cut after for packing again.
+    assert!(delta.merges.is_empty());
+    let packed = delta.pack_body(shape, quantum, known);
     assert!(
         packed.len() <= body.len(),
         "re-packing grew {} bytes to {}",
         body.len(),
         packed.len()
     );
-    let again =
-        Delta::unpack_body(shape, quantum, SEQ, 0, &packed, &parents).expect("a packed body");
+    let again = Delta::unpack_body(shape, quantum, SEQ, 0, &packed, known).expect("a packed body");
     assert_eq!(again, delta);
-    assert_eq!(again.pack_body(shape, quantum, &parents), packed);
+    assert_eq!(again.pack_body(shape, quantum, known), packed);
     apply(&geom, quantum, delta);
     true
+}
+
+/// Decodes `body` against a cut whose nodes down to level 3 are all interior, where merges
+/// decode too (they are ranks among the receiver's interior nodes); a delta that applies to
+/// that cut packs, against the cut after it, into a body that decodes to it again. True if the
+/// body decoded.
+fn against_a_deeper_cut(shape: &TreeShape, quantum: f32, body: &[u8]) -> bool {
+    let before = deeper_cut(shape);
+    let known = Known {
+        parents: &NoParents,
+        cut: &before,
+    };
+    let Ok(delta) = Delta::unpack_body(shape, quantum, SEQ, 0, body, known) else {
+        return false;
+    };
+    let mut after = before.clone();
+    let fits = delta
+        .merges
+        .iter()
+        .rev()
+        .all(|&m| after.merge(shape, m).is_ok())
+        && delta
+            .splits
+            .iter()
+            .all(|s| after.split(shape, s.node).is_ok());
+    if !fits {
+        return true;
+    }
+    let packed = delta.pack_body(
+        shape,
+        quantum,
+        Known {
+            parents: &NoParents,
+            cut: &after,
+        },
+    );
+    let again = Delta::unpack_body(shape, quantum, SEQ, 0, &packed, known).expect("a packed body");
+    assert_eq!(again, delta);
+    true
+}
+
+/// The cut whose inner nodes down to level 3 are all interior.
+fn deeper_cut(shape: &TreeShape) -> Cut {
+    let mut cut = Cut::root(shape);
+    let mut stack = vec![NodeId::ROOT];
+    while let Some(n) = stack.pop() {
+        if n.level <= 3 && !shape.is_leaf(n) {
+            cut.split(shape, n).expect("an active inner node splits");
+            stack.extend(shape.children(n).map(|(_, c)| c));
+        }
+    }
+    cut
 }
 
 /// Applies `delta` to a mirror of the root and checks the result (see the module docs).
@@ -133,8 +192,20 @@ fn apply(geom: &TerrainGeometry, quantum: f32, delta: Delta) {
         merges: delta.splits.iter().map(|s| s.node).collect(),
         splits: Vec::new(),
     };
-    let body = undo.pack_body(shape, quantum, &mirror);
-    let wire = Delta::unpack_body(shape, quantum, undo.seq, undo.digest, &body, &mirror);
+    let root = Cut::root(shape);
+    let after = Known {
+        parents: &NoParents,
+        cut: &root,
+    };
+    let body = undo.pack_body(shape, quantum, after);
+    let wire = Delta::unpack_body(
+        shape,
+        quantum,
+        undo.seq,
+        undo.digest,
+        &body,
+        Known::mirror(&mirror),
+    );
     assert_eq!(wire.as_ref(), Ok(&undo));
     mirror
         .apply(geom, &undo, |_, _| {})
@@ -167,8 +238,8 @@ fn splits_from_root(shape: &TreeShape, quantum: f32, n: usize) -> Delta {
     delta
 }
 
-/// Deltas from the root on a few small grids, one with merges (which decodes, and is refused
-/// by a mirror of the root), and the empty delta.
+/// Deltas from the root on a few small grids, the empty delta, and merges of a cut whose nodes
+/// down to level 3 are all interior (the cut the merges decode against).
 pub fn seeds() -> Vec<(String, Vec<u8>)> {
     let mut out = Vec::new();
     for (w, h, param, n) in [(5, 3, 3, 3), (33, 20, 1, 9), (65, 65, 2, 21), (9, 6, 0, 0)] {
@@ -181,19 +252,42 @@ pub fn seeds() -> Vec<(String, Vec<u8>)> {
         let shape = TreeShape::new(w, h).expect("a small grid");
         let delta = splits_from_root(&shape, quantum, n);
         let name = format!("splits_{w}x{h}_{n}");
-        out.push((name, header.with(&delta.pack_body(&shape, quantum, &NoParents))));
+        // No merges: the cut is not read.
+        let known = Known {
+            parents: &NoParents,
+            cut: &Cut::root(&shape),
+        };
+        out.push((name, header.with(&delta.pack_body(&shape, quantum, known))));
     }
     let shape = TreeShape::new(33, 20).expect("a small grid");
-    let mut both = splits_from_root(&shape, 0.1, 5);
-    both.merges = both.splits[3..].iter().map(|s| s.node).collect();
+    let mut after = deeper_cut(&shape);
+    let merges: Vec<NodeId> = after
+        .interior_nodes()
+        .filter(|n| n.level == 3 && (n.x + n.y) % 3 == 0)
+        .collect();
+    for &m in &merges {
+        after
+            .merge(&shape, m)
+            .expect("a level-3 node with active children merges");
+    }
+    let mut delta = Delta {
+        digest: after.digest(),
+        merges,
+        ..Delta::default()
+    };
+    delta.canonicalize();
     let header = Header {
         width: 33,
         height: 20,
         param: 1,
     };
+    let known = Known {
+        parents: &NoParents,
+        cut: &after,
+    };
     out.push((
-        "merges_and_splits_33x20".into(),
-        header.with(&both.pack_body(&shape, 0.1, &NoParents)),
+        "merges_33x20".into(),
+        header.with(&delta.pack_body(&shape, 0.1, known)),
     ));
     out
 }

@@ -27,8 +27,8 @@
 //! position's leading one. On both benchmark terrains `split_bytes_mean` is below
 //! `delta_entropy_bytes`.
 
-use super::predict::{Parents, Predictor};
-use super::{Delta, morton, positions, predicted_code};
+use super::predict::Predictor;
+use super::{Delta, Known, merge_positions, morton, positions, predicted_code};
 use crate::bits::zigzag;
 use crate::tree::TreeShape;
 use rustc_hash::FxHashMap;
@@ -71,30 +71,31 @@ pub struct SplitEntropy {
 }
 
 impl SplitEntropy {
-    /// Tallies the splits and merges of `delta`, coded with z quantum `quantum` and its details
-    /// predicted from `parents` as the body coder predicts them (the residuals are counted).
-    pub fn add(&mut self, delta: &Delta, shape: &TreeShape, quantum: f32, parents: &dyn Parents) {
+    /// Tallies the splits and merges of `delta`, coded with z quantum `quantum` against `known`
+    /// (the parents and the cut after the delta) as the body coder codes them: the details'
+    /// residuals and the merges' ranks are counted.
+    pub fn add(&mut self, delta: &Delta, shape: &TreeShape, quantum: f32, known: Known<'_>) {
         let mut merges: Vec<_> = delta.merges.iter().map(|&n| (n.level, morton(n))).collect();
         merges.sort_unstable();
-        for (step, value) in positions(merges.into_iter()) {
-            self.count(Context::MergeStep, step as u64);
-            let bucket = 64 - (value + 1).leading_zeros() as u64;
-            self.count(Context::MergePositionBucket, bucket);
-            self.merge_raw_bits += bucket - 1;
-        }
         let mut splits: Vec<_> = delta
             .splits
             .iter()
             .map(|s| (s.node.level, morton(s.node), s))
             .collect();
         splits.sort_unstable_by_key(|&(l, m, _)| (l, m));
+        for (step, value) in merge_positions(&merges, &splits, known.cut) {
+            self.count(Context::MergeStep, step as u64);
+            let bucket = 64 - (value + 1).leading_zeros() as u64;
+            self.count(Context::MergePositionBucket, bucket);
+            self.merge_raw_bits += bucket - 1;
+        }
         for (step, value) in positions(splits.iter().map(|&(l, m, _)| (l, m))) {
             self.count(Context::Step, step as u64);
             let bucket = 64 - (value + 1).leading_zeros() as u64;
             self.count(Context::PositionBucket, bucket);
             self.raw_bits += bucket - 1;
         }
-        let mut predictor = Predictor::new(parents);
+        let mut predictor = Predictor::new(known.parents);
         for (k, &(level, _, s)) in splits.iter().enumerate() {
             let predicted = predictor.predict(
                 shape,
@@ -154,7 +155,9 @@ impl SplitEntropy {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::delta::{NoParents, Split};
+    use crate::cut::Cut;
+    use crate::delta::Split;
+    use crate::delta::tests::alone;
     use crate::tree::{NodeId, TreeShape};
 
     /// A split of the level-3 node whose Morton code is `m`.
@@ -180,7 +183,12 @@ mod tests {
             ..Delta::default()
         };
         let mut e = SplitEntropy::default();
-        e.add(&d, &TreeShape::new(65, 65).unwrap(), 0.1, &NoParents);
+        e.add(
+            &d,
+            &TreeShape::new(65, 65).unwrap(),
+            0.1,
+            alone(&Cut::root(&TreeShape::new(65, 65).unwrap())),
+        );
         assert_eq!(e.splits(), 8);
         // Steps {3, 0 x7} and buckets {1 x8}: H(steps) = 8 * h(1/8) bits, no raw bits.
         let h = (1.0f64 / 8.0) * 8f64.log2() + (7.0 / 8.0) * (8.0f64 / 7.0).log2();
@@ -195,6 +203,7 @@ mod tests {
     #[test]
     fn the_entropy_never_exceeds_the_packed_body() {
         let shape = TreeShape::new(65, 65).unwrap();
+        let root = Cut::root(&shape);
         let d = Delta {
             splits: (0..8)
                 .map(|x| split(x, [x as i32 * 7 - 20, (x as i32 - 4).pow(3), x as i32 % 3]))
@@ -202,36 +211,49 @@ mod tests {
             ..Delta::default()
         };
         let mut e = SplitEntropy::default();
-        e.add(&d, &TreeShape::new(65, 65).unwrap(), 0.1, &NoParents);
-        assert!(e.bytes_per_split() * 8.0 <= d.pack_body(&shape, 0.1, &NoParents).len() as f64);
+        e.add(&d, &shape, 0.1, alone(&root));
+        assert!(e.bytes_per_split() * 8.0 <= d.pack_body(&shape, 0.1, alone(&root)).len() as f64);
         assert_eq!(e.delta_bytes_per_split(), e.bytes_per_split());
     }
 
     #[test]
     fn merges_count_in_the_delta_entropy_only() {
+        let shape = TreeShape::new(65, 65).unwrap();
+        // Every inner node interior but the merged ones: a merge's rank is its Morton gap.
+        let mut after = Cut::root(&shape);
+        let mut stack = vec![NodeId::ROOT];
+        while let Some(n) = stack.pop() {
+            if !shape.is_leaf(n) {
+                after.split(&shape, n).unwrap();
+                stack.extend(shape.children(n).map(|(_, c)| c));
+            }
+        }
         let mut d = Delta {
             splits: (0..8).map(|x| split(x, [5, -3, 1])).collect(),
             ..Delta::default()
         };
         let mut e = SplitEntropy::default();
-        e.add(&d, &TreeShape::new(65, 65).unwrap(), 0.1, &NoParents);
+        e.add(&d, &shape, 0.1, alone(&after));
         let splits_only = e.bytes_per_split();
         // Merges far apart: their gaps carry raw bits.
         d.merges = (0..4)
             .map(|i| NodeId {
                 level: 6,
-                x: i * 17,
+                x: i * 7,
                 y: 3 * i,
             })
             .collect();
+        for &m in &d.merges {
+            after.merge(&shape, m).unwrap();
+        }
         let mut e = SplitEntropy::default();
-        e.add(&d, &TreeShape::new(65, 65).unwrap(), 0.1, &NoParents);
+        e.add(&d, &shape, 0.1, alone(&after));
         assert_eq!(e.bytes_per_split(), splits_only);
-        // Morton codes 0, 267, 1068, 1415: steps {6, 0, 0, 0}, values 0, 266, 800, 346 in
-        // buckets {1, 9, 10, 9} with 0 + 8 + 9 + 8 raw bits.
+        // Morton codes 0, 31, 124, 403: steps {6, 0, 0, 0}, values 0, 30, 92, 278 in buckets
+        // {1, 5, 7, 9} with 0 + 4 + 6 + 8 raw bits.
         let steps = 4.0 * (0.25 * 4f64.log2() + 0.75 * (4.0f64 / 3.0).log2());
-        let buckets = 2.0 * 4f64.log2() + 2.0 * 2f64.log2();
-        let want = splits_only + (steps + buckets + 25.0) / 8.0 / 8.0;
+        let buckets = 4.0 * 4f64.log2();
+        let want = splits_only + (steps + buckets + 18.0) / 8.0 / 8.0;
         assert!(
             (e.delta_bytes_per_split() - want).abs() < 1e-9,
             "{}",

@@ -15,9 +15,12 @@
 //! 1. `n_merges`, `n_splits` (one model for both).
 //! 2. Merges, then splits, each sorted by level and then by Morton (Z-order) code within the level,
 //!    so that parents come before children and nearby nodes have nearby codes. Each node is its
-//!    level step from the previous node, then its Morton code: if the level is unchanged, as the
-//!    gap to the previous code minus one, else as is (a step model and a position model for the
-//!    merges, another two for the splits).
+//!    level step from the previous node, then its position (a step model and a position model
+//!    for the merges, another two for the splits). A split's position is its Morton code: if the
+//!    level is unchanged, as the gap to the previous code minus one, else as is. A merge's is its
+//!    rank among the receiver's interior nodes of its level after the previous merge of that
+//!    level (protocol 5, [`merge_positions`]): the receiver's cut before the delta, which the
+//!    sender counts on its cut after it ([`Known`]).
 //! 3. Per split, in the same order: its three details as residuals against a prediction from
 //!    its parent's details (protocol 5, [`predict`]: half the parent's slopes, a quarter of its
 //!    twist), each in the model of its level and component, then the error code's residual
@@ -46,6 +49,7 @@ use predict::Predictor;
 pub use predict::{NoParents, Parents, quad_details};
 
 use crate::bits::{unzigzag, zigzag};
+use crate::cut::Cut;
 use crate::haar::{error_code, inverse};
 use crate::range::{Decoder, Encoder, Value};
 use crate::tree::{NodeId, TreeShape};
@@ -91,6 +95,32 @@ pub enum BodyError {
     /// A value is outside its range.
     #[error("delta holds an out-of-range {0}")]
     OutOfRange(&'static str),
+    /// A merge's rank names no interior node of the receiver's cut.
+    #[error("delta merges past the last interior node of level {0}")]
+    NoSuchMerge(u8),
+}
+
+/// What a body is coded against besides the connection's models: where the receiver's parents
+/// come from ([`Parents`]) and a cut. Merges travel as ranks among the receiver's interior
+/// nodes (docs/protocol.md section 5.2), so the packer needs the cut *after* the delta (the
+/// sender's: the cut before it is that one less the delta's splits plus its merges) and the
+/// unpacker the cut *before* it (the receiver's mirror).
+#[derive(Clone, Copy)]
+pub struct Known<'a> {
+    /// The details of split nodes' parents that are not in the body.
+    pub parents: &'a dyn Parents,
+    /// The cut after the delta (packing) or before it (unpacking).
+    pub cut: &'a Cut,
+}
+
+impl<'a> Known<'a> {
+    /// What a client knows before applying a delta: its mirror.
+    pub fn mirror(mirror: &'a crate::mirror::Mirror) -> Known<'a> {
+        Known {
+            parents: mirror,
+            cut: mirror.cut(),
+        }
+    }
 }
 
 /// The error code both ends predict from a split's details, in z quanta of `quantum` metres.
@@ -114,10 +144,10 @@ impl Delta {
     }
 
     /// Encodes merges and splits into a body with fresh models (a one-shot delta). `quantum` is
-    /// the terrain's z quantum; `parents` gives the details of split nodes' parents that do not
-    /// split in this delta, as the receiver holds them ([`Parents`]).
-    pub fn pack_body(&self, shape: &TreeShape, quantum: f32, parents: &dyn Parents) -> Vec<u8> {
-        self.pack_body_in(shape, &mut BodyModels::new(), quantum, parents)
+    /// the terrain's z quantum; `known` holds the parents and the cut after the delta
+    /// ([`Known`]).
+    pub fn pack_body(&self, shape: &TreeShape, quantum: f32, known: Known<'_>) -> Vec<u8> {
+        self.pack_body_in(shape, &mut BodyModels::new(), quantum, known)
     }
 
     /// Encodes merges and splits into the compact body with a connection's `models`, which it
@@ -127,7 +157,7 @@ impl Delta {
         shape: &TreeShape,
         models: &mut BodyModels,
         quantum: f32,
-        parents: &dyn Parents,
+        known: Known<'_>,
     ) -> Vec<u8> {
         if self.is_empty() {
             return Vec::new();
@@ -144,7 +174,7 @@ impl Delta {
         let mut e = Encoder::new();
         e.value(&mut models.counts, merges.len() as u64);
         e.value(&mut models.counts, splits.len() as u64);
-        for (step, v) in positions(merges.iter().copied()) {
+        for (step, v) in merge_positions(&merges, &splits, known.cut) {
             e.value(&mut models.merge_step, step as u64);
             e.value(&mut models.merge_pos, v);
         }
@@ -152,7 +182,7 @@ impl Delta {
             e.value(&mut models.split_step, step as u64);
             e.value(&mut models.split_pos, v);
         }
-        let mut predictor = Predictor::new(parents);
+        let mut predictor = Predictor::new(known.parents);
         for (i, &(level, _, s)) in splits.iter().enumerate() {
             let predicted = predictor.predict(
                 shape,
@@ -170,15 +200,15 @@ impl Delta {
         e.finish()
     }
 
-    /// Decodes a body written by [`Delta::pack_body`] for the same terrain, with the same
-    /// `parents` (the receiver's: see [`Parents`]).
+    /// Decodes a body written by [`Delta::pack_body`] for the same terrain, against what the
+    /// receiver holds before the delta (`known`: its parents and its cut, [`Known::mirror`]).
     pub fn unpack_body(
         shape: &TreeShape,
         quantum: f32,
         seq: u64,
         digest: u64,
         body: &[u8],
-        parents: &dyn Parents,
+        known: Known<'_>,
     ) -> Result<Delta, BodyError> {
         Self::unpack_body_in(
             shape,
@@ -187,7 +217,7 @@ impl Delta {
             digest,
             body,
             &mut BodyModels::new(),
-            parents,
+            known,
         )
     }
 
@@ -201,7 +231,7 @@ impl Delta {
         digest: u64,
         body: &[u8],
         models: &mut BodyModels,
-        parents: &dyn Parents,
+        known: Known<'_>,
     ) -> Result<Delta, BodyError> {
         if body.is_empty() {
             return Ok(Delta {
@@ -226,13 +256,7 @@ impl Delta {
         };
         let mut prev = None;
         for _ in 0..n_merges {
-            let node = next_node(
-                shape,
-                &mut r,
-                &mut models.merge_step,
-                &mut models.merge_pos,
-                &mut prev,
-            )?;
+            let node = next_merge(shape, &mut r, models, known.cut, &mut prev)?;
             delta.merges.push(node);
         }
         let mut nodes = Vec::with_capacity(reserve(n_splits));
@@ -246,7 +270,7 @@ impl Delta {
                 &mut prev,
             )?);
         }
-        let mut predictor = Predictor::new(parents);
+        let mut predictor = Predictor::new(known.parents);
         for (i, &node) in nodes.iter().enumerate() {
             let predicted =
                 predictor.predict(shape, i, node, |k| nodes[k], |k| delta.splits[k].details);
@@ -383,6 +407,83 @@ pub(crate) fn positions(sorted: impl Iterator<Item = (u8, u64)>) -> Vec<(u8, u64
         .collect()
 }
 
+/// The merges' level steps and position values (docs/protocol.md section 5.2): a merge's value
+/// is the number of the receiver's interior nodes of its level between the previous merge of
+/// that level (or the level's start) and itself. The receiver's cut before the delta is `after`
+/// less the delta's splits plus its merges, and no merge lies between two consecutive ones, so
+/// the count is `after`'s less the splits of that level in the range. `merges` and `splits` are
+/// in wire order.
+pub(crate) fn merge_positions(
+    merges: &[(u8, u64)],
+    splits: &[(u8, u64, &Split)],
+    after: &Cut,
+) -> Vec<(u8, u64)> {
+    let mut prev: Option<(u8, u64)> = None;
+    let mut j = 0;
+    merges
+        .iter()
+        .map(|&(l, m)| {
+            let lo = match prev {
+                Some((pl, pm)) if pl == l => pm + 1,
+                _ => 0,
+            };
+            while j < splits.len() && (splits[j].0, splits[j].1) < (l, lo) {
+                j += 1;
+            }
+            let mut split_here = 0;
+            while j < splits.len() && (splits[j].0, splits[j].1) < (l, m) {
+                split_here += 1;
+                j += 1;
+            }
+            let rank = after
+                .interior_count_morton(l, lo, m)
+                .saturating_sub(split_here);
+            let step = match prev {
+                Some((pl, _)) => l - pl,
+                None => l,
+            };
+            prev = Some((l, m));
+            (step, rank)
+        })
+        .collect()
+}
+
+/// The next merge of a body: its level step and its rank among `before`'s interior nodes of
+/// its level after the previous merge of that level (see [`merge_positions`]).
+fn next_merge(
+    shape: &TreeShape,
+    r: &mut Decoder<'_>,
+    models: &mut BodyModels,
+    before: &Cut,
+    prev: &mut Option<(u8, u64)>,
+) -> Result<NodeId, BodyError> {
+    let step = r
+        .value(&mut models.merge_step)
+        .ok_or(BodyError::Malformed)?;
+    let rank = r.value(&mut models.merge_pos).ok_or(BodyError::Malformed)?;
+    if r.overrun() {
+        return Err(BodyError::Malformed);
+    }
+    let (level, from) = match *prev {
+        Some((pl, pm)) if step == 0 => (u64::from(pl), pm + 1),
+        Some((pl, _)) => (u64::from(pl) + step, 0),
+        None => (step, 0),
+    };
+    if level >= u64::from(shape.depth()) {
+        return Err(BodyError::Malformed);
+    }
+    let level = level as u8;
+    let code = before
+        .interior_select_morton(level, from, rank)
+        .ok_or(BodyError::NoSuchMerge(level))?;
+    *prev = Some((level, code));
+    Ok(NodeId {
+        level,
+        x: compact(code),
+        y: compact(code >> 1),
+    })
+}
+
 fn next_node(
     shape: &TreeShape,
     r: &mut Decoder<'_>,
@@ -422,73 +523,197 @@ fn next_node(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use proptest::prelude::*;
 
-    fn arb_delta(shape: TreeShape) -> impl Strategy<Value = Delta> {
-        let inner = shape.level_offset(shape.depth());
-        let split = (
-            0..inner,
-            any::<u8>(),
-            proptest::array::uniform3(-5000i32..5000),
-        );
-        (
-            proptest::collection::btree_set(0..inner, 0..40),
-            proptest::collection::btree_map(0..inner, split.prop_map(|(_, e, d)| (e, d)), 0..60),
-            any::<u64>(),
-        )
-            .prop_map(move |(m, s, digest)| Delta {
-                seq: 7,
-                digest,
-                merges: m.into_iter().map(|i| shape.node(i).unwrap()).collect(),
-                splits: s
-                    .into_iter()
-                    .map(|(i, (err_code, details))| Split {
-                        node: shape.node(i).unwrap(),
-                        err_code,
-                        details,
-                    })
-                    .collect(),
-            })
+    /// What a sender knows with no parents beyond the body: the cut alone.
+    pub(crate) fn alone(cut: &Cut) -> Known<'_> {
+        Known {
+            parents: &NoParents,
+            cut,
+        }
+    }
+
+    /// A delta in wire order from `shadow`'s cut, as deltas go: a few merges of nodes whose
+    /// children are all active (and now and then the parent of one, when that leaves its
+    /// children all active: a merge chain, as between distant cuts), then splits of active
+    /// nodes that often go on down (all of a split node's children split too with probability
+    /// `chain`, recursively, some of them otherwise), with details in -5000..5000; `shadow` is
+    /// moved to the cut after it.
+    pub(crate) fn random_delta(
+        shape: &TreeShape,
+        shadow: &mut Cut,
+        rng: &mut crate::rng::Rng,
+        chain: f64,
+    ) -> Delta {
+        let mergeable = |cut: &Cut, n: NodeId| {
+            cut.is_interior(shape, n) && shape.children(n).all(|(_, c)| !cut.is_interior(shape, c))
+        };
+        let mut merges = Vec::new();
+        let mut candidates: Vec<NodeId> = shadow
+            .interior_indices()
+            .filter_map(|i| shape.node(i))
+            .filter(|&n| mergeable(shadow, n))
+            .collect();
+        candidates.sort_unstable_by_key(|&n| shape.index(n));
+        for _ in 0..rng.below(5) {
+            if candidates.is_empty() {
+                break;
+            }
+            let n = candidates.swap_remove(rng.below(candidates.len()));
+            shadow.merge(shape, n).unwrap();
+            merges.push(n);
+            if let Some(p) = n
+                .parent()
+                .filter(|&p| mergeable(shadow, p) && rng.below(3) == 0)
+            {
+                shadow.merge(shape, p).unwrap();
+                merges.push(p);
+                candidates.retain(|&c| c.parent() != Some(p));
+            }
+        }
+        let mut splits = Vec::new();
+        let mut active: Vec<NodeId> = shadow
+            .active_nodes(shape)
+            .into_iter()
+            .filter(|&n| !shape.is_leaf(n) && !merges.contains(&n))
+            .collect();
+        let mut stack = Vec::new();
+        for _ in 0..1 + rng.below(4) {
+            if !active.is_empty() {
+                stack.push(active.swap_remove(rng.below(active.len())));
+            }
+        }
+        while let Some(n) = stack.pop() {
+            if shape.is_leaf(n) {
+                continue;
+            }
+            shadow.split(shape, n).unwrap();
+            let detail = |r: &mut crate::rng::Rng| r.below(10_000) as i32 - 5000;
+            splits.push(Split {
+                node: n,
+                err_code: rng.below(256) as u8,
+                details: [detail(rng), detail(rng), detail(rng)],
+            });
+            let all = rng.unit() < chain;
+            for (_, c) in shape.children(n) {
+                if all || rng.below(4) == 0 {
+                    stack.push(c);
+                }
+            }
+        }
+        let mut d = Delta {
+            seq: 7,
+            digest: shadow.digest(),
+            merges,
+            splits,
+        };
+        d.canonicalize();
+        d
     }
 
     proptest! {
+        /// One-shot bodies of valid deltas round-trip: packed against the cut after the delta,
+        /// unpacked against the cut before it.
         #[test]
-        fn body_round_trips(d in arb_delta(TreeShape::new(300, 170).unwrap())) {
-            let shape = TreeShape::new(300, 170).unwrap();
-            let body = d.pack_body(&shape, 0.25, &NoParents);
-            let back = Delta::unpack_body(&shape, 0.25, d.seq, d.digest, &body, &NoParents).unwrap();
-            let mut d = d;
-            d.canonicalize();
-            prop_assert_eq!(back, d);
+        fn body_round_trips(w in 2u32..300, h in 2u32..170, seed in any::<u64>(), chain in 0.0f64..0.8) {
+            let shape = TreeShape::new(w, h).unwrap();
+            let mut rng = crate::rng::Rng::new(seed);
+            let mut cut = Cut::root(&shape);
+            for _ in 0..6 {
+                let before = cut.clone();
+                let d = random_delta(&shape, &mut cut, &mut rng, chain);
+                let body = d.pack_body(&shape, 0.25, alone(&cut));
+                let back = Delta::unpack_body(&shape, 0.25, d.seq, d.digest, &body, alone(&before));
+                prop_assert_eq!(back.unwrap(), d);
+            }
         }
 
         /// A connection's bodies decode in order with the models carried over, an empty delta
-        /// (empty body) among them leaving the models as they were.
+        /// (empty body) among them leaving the models as they were; the client's mirror gives
+        /// the parents.
         #[test]
-        fn a_connection_of_bodies_round_trips(
-            ds in proptest::collection::vec(
-                prop_oneof![1 => Just(Delta::default()), 4 => arb_delta(TreeShape::new(300, 170).unwrap())],
-                1..6)
-        ) {
-            let shape = TreeShape::new(300, 170).unwrap();
+        fn a_connection_of_bodies_round_trips(w in 2u32..300, h in 2u32..170, seed in any::<u64>(),
+                                              empties in proptest::collection::vec(any::<bool>(), 1..8)) {
+            let shape = TreeShape::new(w, h).unwrap();
+            let geom = crate::terrain::TerrainGeometry::new(w, h, 1.0, 1.0, 0.25).unwrap();
+            let mut rng = crate::rng::Rng::new(seed);
+            let mut cut = Cut::root(&shape);
+            let mut mirror = crate::mirror::Mirror::new(&geom, 0);
             let (mut server, mut client) = (BodyModels::new(), BodyModels::new());
-            for d in ds {
-                let body = d.pack_body_in(&shape, &mut server, 0.25, &NoParents);
+            for empty in empties {
+                let d = if empty {
+                    Delta { seq: 7, digest: cut.digest(), ..Delta::default() }
+                } else {
+                    random_delta(&shape, &mut cut, &mut rng, 0.5)
+                };
+                let body = d.pack_body_in(&shape, &mut server, 0.25, Known { parents: &mirror, cut: &cut });
                 prop_assert_eq!(body.is_empty(), d.is_empty());
-                let back = Delta::unpack_body_in(&shape, 0.25, d.seq, d.digest, &body, &mut client, &NoParents);
-                let mut d = d;
-                d.canonicalize();
-                prop_assert_eq!(back.unwrap(), d);
+                let back = Delta::unpack_body_in(&shape, 0.25, d.seq, d.digest, &body, &mut client,
+                                                 Known::mirror(&mirror));
+                prop_assert_eq!(back.as_ref(), Ok(&d));
+                mirror.apply(&geom, &d, |_, _| {}).unwrap();
             }
         }
 
         #[test]
         fn random_bodies_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
             let shape = TreeShape::new(33, 20).unwrap();
-            let _ = Delta::unpack_body(&shape, 0.25, 0, 0, &bytes, &NoParents);
+            // Every inner node interior: merges of any rank select something.
+            let mut full = Cut::root(&shape);
+            let mut stack = vec![NodeId::ROOT];
+            while let Some(n) = stack.pop() {
+                if !shape.is_leaf(n) {
+                    full.split(&shape, n).unwrap();
+                    stack.extend(shape.children(n).map(|(_, c)| c));
+                }
+            }
+            let _ = Delta::unpack_body(&shape, 0.25, 0, 0, &bytes, alone(&full));
+            let _ = Delta::unpack_body(&shape, 0.25, 0, 0, &bytes, alone(&Cut::root(&shape)));
         }
+    }
+
+    /// A merge is sent as its rank among the receiver's interior nodes of its level, and one
+    /// past the last is refused.
+    #[test]
+    fn merges_are_ranks_in_the_receivers_cut() {
+        let shape = TreeShape::new(33, 33).unwrap();
+        let mut before = Cut::root(&shape);
+        before.split(&shape, NodeId::ROOT).unwrap();
+        for k in 0..4 {
+            before.split(&shape, NodeId::ROOT.child(k)).unwrap();
+        }
+        // Merge the last level-1 node: rank 3 among the four.
+        let mut after = before.clone();
+        after.merge(&shape, NodeId::ROOT.child(3)).unwrap();
+        let d = Delta {
+            merges: vec![NodeId::ROOT.child(3)],
+            ..Delta::default()
+        };
+        let (mut e, mut counts, mut step, mut pos) = (
+            Encoder::new(),
+            Value::default(),
+            Value::default(),
+            Value::default(),
+        );
+        e.value(&mut counts, 1);
+        e.value(&mut counts, 0);
+        e.value(&mut step, 1);
+        e.value(&mut pos, 3);
+        assert_eq!(d.pack_body(&shape, 0.25, alone(&after)), e.finish());
+        let body = d.pack_body(&shape, 0.25, alone(&after));
+        assert_eq!(
+            Delta::unpack_body(&shape, 0.25, 0, 0, &body, alone(&before)),
+            Ok(d)
+        );
+        // Against a cut with three interior level-1 nodes, rank 3 names none.
+        let mut three = before.clone();
+        three.merge(&shape, NodeId::ROOT.child(0)).unwrap();
+        assert_eq!(
+            Delta::unpack_body(&shape, 0.25, 0, 0, &body, alone(&three)),
+            Err(BodyError::NoSuchMerge(1))
+        );
     }
 
     /// A session keeps its models for the connection's life: they must stay small (docs say
@@ -511,7 +736,7 @@ mod tests {
         e.value(&mut counts, 0);
         let body = e.finish();
         assert_eq!(
-            Delta::unpack_body(&shape, 0.25, 0, 0, &body, &NoParents),
+            Delta::unpack_body(&shape, 0.25, 0, 0, &body, alone(&Cut::root(&shape))),
             Err(BodyError::Malformed)
         );
     }
@@ -536,7 +761,7 @@ mod tests {
         let mut body = e.finish();
         body.resize(1 << 20, 0xA5);
         assert_eq!(
-            Delta::unpack_body(&shape, 0.25, 0, 0, &body, &NoParents),
+            Delta::unpack_body(&shape, 0.25, 0, 0, &body, alone(&Cut::root(&shape))),
             Err(BodyError::UnknownNode(NodeId {
                 level: 0,
                 x: 1,
@@ -558,11 +783,11 @@ mod tests {
                 .collect(),
             ..Delta::default()
         };
-        let body = d.pack_body(&shape, 0.1, &NoParents);
+        let body = d.pack_body(&shape, 0.1, alone(&Cut::root(&shape)));
         // (No bytes at all is the empty delta.)
         for n in 1..body.len() {
             assert_eq!(
-                Delta::unpack_body(&shape, 0.1, 0, 0, &body[..n], &NoParents),
+                Delta::unpack_body(&shape, 0.1, 0, 0, &body[..n], alone(&Cut::root(&shape))),
                 Err(BodyError::Malformed),
                 "{n} of {} bytes",
                 body.len()
@@ -583,15 +808,15 @@ mod tests {
                 details: [3, -4, 5],
             }],
         };
-        let body = d.pack_body(&shape, 0.1, &NoParents);
+        let body = d.pack_body(&shape, 0.1, alone(&Cut::root(&shape)));
         assert_eq!(
-            Delta::unpack_body(&shape, 0.1, 1, 2, &body, &NoParents).unwrap(),
+            Delta::unpack_body(&shape, 0.1, 1, 2, &body, alone(&Cut::root(&shape))).unwrap(),
             d
         );
         let mut longer = body.clone();
         longer.push(0);
         assert_eq!(
-            Delta::unpack_body(&shape, 0.1, 1, 2, &longer, &NoParents),
+            Delta::unpack_body(&shape, 0.1, 1, 2, &longer, alone(&Cut::root(&shape))),
             Err(BodyError::Malformed)
         );
         let mut dirty = body.clone();
@@ -599,7 +824,7 @@ mod tests {
         dirty[last] ^= 1;
         // The flush's bytes are part of the stream: a changed one changes or breaks the body.
         assert_ne!(
-            Delta::unpack_body(&shape, 0.1, 1, 2, &dirty, &NoParents),
+            Delta::unpack_body(&shape, 0.1, 1, 2, &dirty, alone(&Cut::root(&shape))),
             Ok(d)
         );
     }
@@ -623,10 +848,10 @@ mod doc_examples {
         NodeId { level, x, y }
     }
 
-    /// The models after packing `first` from fresh ones.
-    fn one_then(shape: &TreeShape, first: &Delta, q: f32) -> BodyModels {
+    /// The models after packing `first` (against `after`) from fresh ones.
+    fn one_then(shape: &TreeShape, first: &Delta, after: &Cut, q: f32) -> BodyModels {
         let mut m = BodyModels::new();
-        first.pack_body_in(shape, &mut m, q, &NoParents);
+        first.pack_body_in(shape, &mut m, q, super::tests::alone(after));
         m
     }
 
@@ -635,8 +860,12 @@ mod doc_examples {
         let shape = TreeShape::new(5, 3).unwrap();
         let q = 0.5;
         let geom = crate::terrain::TerrainGeometry::new(5, 3, 1.0, 1.0, q).unwrap();
-        let mut cut = crate::cut::Cut::root(&shape);
+        let root = Cut::root(&shape);
+        let mut cut = root.clone();
         cut.split(&shape, NodeId::ROOT).unwrap();
+        let mut cut2 = cut.clone();
+        cut2.split(&shape, node(1, 0, 0)).unwrap();
+        cut2.split(&shape, node(1, 1, 0)).unwrap();
         let one = Delta {
             digest: cut.digest(),
             splits: vec![Split {
@@ -669,7 +898,11 @@ mod doc_examples {
         assert_eq!(predicted_code([2, 5, 2], q), 86);
         assert_eq!(predicted_code([2, 0, 0], q), 64);
         let doc = include_str!("../../../docs/protocol.md");
-        assert!(Delta::default().pack_body(&shape, q, &NoParents).is_empty());
+        assert!(
+            Delta::default()
+                .pack_body(&shape, q, super::tests::alone(&root))
+                .is_empty()
+        );
         assert!(doc.contains("The empty delta has the empty body (no bytes)."));
         // Deltas 1 and 2 are one connection's (its models carry over, and delta 2's details are
         // predicted from the root's, which the client holds after delta 1: both ends read them
@@ -677,20 +910,32 @@ mod doc_examples {
         let mut mirror = crate::mirror::Mirror::new(&geom, 0);
         let mut models = [BodyModels::new(), BodyModels::new()];
         let mut decoders = [BodyModels::new(), BodyModels::new()];
-        for (name, d, m) in [
-            ("delta 1", &one, 0),
-            ("delta 2", &two, 0),
-            ("merge back", &back, 1),
+        for (name, d, m, after) in [
+            ("delta 1", &one, 0, &cut),
+            ("delta 2", &two, 0, &cut2),
+            ("merge back", &back, 1, &root),
         ] {
-            let body = d.pack_body_in(&shape, &mut models[m], q, &mirror);
+            let known = Known {
+                parents: &mirror,
+                cut: after,
+            };
+            let body = d.pack_body_in(&shape, &mut models[m], q, known);
             let want = format!("=> body {}", hex(&body));
             assert!(doc.contains(&want), "{name}: the document lacks {want:?}");
             let mut d = d.clone();
             d.canonicalize();
-            let back =
-                Delta::unpack_body_in(&shape, q, 0, d.digest, &body, &mut decoders[m], &mirror);
+            let back = Delta::unpack_body_in(
+                &shape,
+                q,
+                0,
+                d.digest,
+                &body,
+                &mut decoders[m],
+                Known::mirror(&mirror),
+            );
             assert_eq!(back.unwrap(), d);
-            if name == "delta 1" {
+            if name != "merge back" {
+                d.digest = after.digest();
                 mirror.apply(&geom, &d, |_, _| {}).unwrap();
             }
         }
@@ -699,10 +944,15 @@ mod doc_examples {
         assert_eq!(mirror.details(NodeId::ROOT), Some([0, 10, 0]));
         // Delta 2 alone, from fresh models and with no parents known, is another body: the
         // models did carry over.
-        let carried = two.pack_body_in(&shape, &mut one_then(&shape, &one, q), q, &NoParents);
-        assert_ne!(two.pack_body(&shape, q, &NoParents), carried);
+        let alone = super::tests::alone(&cut2);
+        let carried = two.pack_body_in(&shape, &mut one_then(&shape, &one, &cut, q), q, alone);
+        assert_ne!(two.pack_body(&shape, q, alone), carried);
         // And predicting from the root's details changed it too.
-        let predicted = two.pack_body_in(&shape, &mut one_then(&shape, &one, q), q, &mirror);
+        let known = Known {
+            parents: &mirror,
+            cut: &cut2,
+        };
+        let predicted = two.pack_body_in(&shape, &mut one_then(&shape, &one, &cut, q), q, known);
         assert_ne!(carried, predicted);
     }
 }

@@ -304,78 +304,6 @@ fn clipped_block_centres_would_fold_a_border_strip() {
     assert_eq!(r.folds, 1, "{r:?}");
 }
 
-/// A delta in wire order from `shadow`'s cut, as a session sends them: a few merges of nodes
-/// whose children are all active, then splits of active nodes that often go on down (all of a
-/// split node's children split too with probability `chain`, recursively, some of them
-/// otherwise); `shadow` is moved to the cut after it.
-fn chained_delta(
-    shape: &TreeShape,
-    shadow: &mut Cut,
-    rng: &mut crate::rng::Rng,
-    chain: f64,
-) -> crate::delta::Delta {
-    use crate::delta::{Delta, Split, wire_key};
-    let mut merges = Vec::new();
-    let mut candidates: Vec<NodeId> = shadow
-        .interior_indices()
-        .filter_map(|i| shape.node(i))
-        .filter(|&n| {
-            shape
-                .children(n)
-                .all(|(_, c)| !shadow.is_interior(shape, c))
-        })
-        .collect();
-    candidates.sort_unstable_by_key(|&n| shape.index(n));
-    for _ in 0..rng.below(3) {
-        if candidates.is_empty() {
-            break;
-        }
-        let n = candidates.swap_remove(rng.below(candidates.len()));
-        shadow.merge(shape, n).unwrap();
-        merges.push(n);
-    }
-    let mut splits = Vec::new();
-    let mut stack: Vec<NodeId> = Vec::new();
-    let mut active: Vec<NodeId> = shadow
-        .active_nodes(shape)
-        .into_iter()
-        .filter(|&n| !shape.is_leaf(n) && !merges.contains(&n))
-        .collect();
-    for _ in 0..1 + rng.below(4) {
-        if !active.is_empty() {
-            stack.push(active.swap_remove(rng.below(active.len())));
-        }
-    }
-    while let Some(n) = stack.pop() {
-        if shape.is_leaf(n) {
-            continue;
-        }
-        shadow.split(shape, n).unwrap();
-        splits.push(n);
-        let all = rng.unit() < chain;
-        for (_, c) in shape.children(n) {
-            if all || rng.below(4) == 0 {
-                stack.push(c);
-            }
-        }
-    }
-    merges.sort_unstable_by_key(|&n| wire_key(n));
-    splits.sort_unstable_by_key(|&n| wire_key(n));
-    Delta {
-        seq: 0,
-        digest: shadow.digest(),
-        merges,
-        splits: splits
-            .into_iter()
-            .map(|node| Split {
-                node,
-                err_code: 1,
-                details: [0; 3],
-            })
-            .collect(),
-    }
-}
-
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
@@ -396,7 +324,7 @@ proptest! {
         let mut drawn = std::collections::BTreeMap::new();
         let mut taken = Vec::new();
         for _ in 0..25 {
-            let delta = chained_delta(shape, &mut shadow, &mut rng, chain);
+            let delta = crate::delta::tests::random_delta(shape, &mut shadow, &mut rng, chain);
             mirror.apply(&geom, &delta, |c, ch| mesh.update_around(shape, c, ch.node())).unwrap();
             let truth = oracle(shape, mirror.cut());
             prop_assert_eq!(mesh.triangles(), truth.clone());

@@ -14,7 +14,8 @@ use crate::lod::vertex::session::VertexSession;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use glam::Vec3;
 use relief_proto::codec;
-use relief_proto::delta::BodyModels;
+use relief_proto::cut::Cut;
+use relief_proto::delta::{BodyModels, Known};
 use relief_proto::mesh::{self, FanMesh, MorphRule, drawn_position};
 use relief_proto::mirror::Mirror;
 use relief_proto::msg::{ServerMsg, SessionDelta, WireDelta};
@@ -197,9 +198,17 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
     let first = engine.full_delta(&paper_cut, 0);
     // The connection's body models, the server's and the client's (docs/protocol.md 5.2).
     let (mut server_models, mut client_models) = (BodyModels::new(), BodyModels::new());
-    let first_bytes = wire(&first, &engine, &mut server_models);
+    let first_bytes = wire(&first, &engine, session.cut_ref(), &mut server_models);
     let mut entropy = relief_proto::delta::SplitEntropy::default();
-    entropy.add(&first, &geom.shape, geom.z_quantum, &engine);
+    entropy.add(
+        &first,
+        &geom.shape,
+        geom.z_quantum,
+        Known {
+            parents: &engine,
+            cut: session.cut_ref(),
+        },
+    );
     let decoded = unwire(&first_bytes, geom, &mut client_models, &mirror)?;
     mirror.apply(geom, &decoded, |_, _| {})?;
     let mut mesh = FanMesh::new(shape, mirror.cut());
@@ -214,9 +223,17 @@ pub fn fly(dem: &Dem, flight: &Flight, opts: &LodBenchOptions) -> anyhow::Result
         let mut st = UpdateStats::default();
         let t0 = Instant::now();
         let delta = session.update(&engine, &view, &p, f as u64, &mut st);
-        let bytes = wire(&delta, &engine, &mut server_models);
+        let bytes = wire(&delta, &engine, session.cut_ref(), &mut server_models);
         r.update_us.push(t0.elapsed().as_secs_f64() * 1e6);
-        entropy.add(&delta, &geom.shape, geom.z_quantum, &engine);
+        entropy.add(
+            &delta,
+            &geom.shape,
+            geom.z_quantum,
+            Known {
+                parents: &engine,
+                cut: session.cut_ref(),
+            },
+        );
         r.visited.push(st.visited as f64);
 
         if opts.cross_checks {
@@ -364,13 +381,23 @@ struct Accum {
 fn wire(
     delta: &relief_proto::delta::Delta,
     engine: &VertexEngine,
+    after: &Cut,
     models: &mut BodyModels,
 ) -> Vec<u8> {
     let geom = engine.geometry();
     codec::encode(&ServerMsg::Delta(SessionDelta {
         pose_seq: delta.seq,
         complete: true,
-        delta: WireDelta::pack_in(delta, &geom.shape, models, geom.z_quantum, engine),
+        delta: WireDelta::pack_in(
+            delta,
+            &geom.shape,
+            models,
+            geom.z_quantum,
+            Known {
+                parents: engine,
+                cut: after,
+            },
+        ),
     }))
 }
 
@@ -383,7 +410,7 @@ fn unwire(
     match codec::decode::<ServerMsg>(bytes, codec::HARD_LIMIT)? {
         ServerMsg::Delta(d) => {
             Ok(d.delta
-                .unpack_in(&geom.shape, geom.z_quantum, models, mirror)?)
+                .unpack_in(&geom.shape, geom.z_quantum, models, Known::mirror(mirror))?)
         }
         other => anyhow::bail!("expected a delta, got {other:?}"),
     }

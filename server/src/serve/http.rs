@@ -14,6 +14,7 @@ use axum::response::{IntoResponse, Response};
 use relief_proto::close::CloseReason;
 use relief_proto::codec;
 use relief_proto::cut::Cut;
+use relief_proto::delta::Known;
 use relief_proto::msg::{LodRequest, LodResponse, PROTOCOL_VERSION, WireDelta};
 use relief_proto::snapshot::Snapshot;
 use relief_proto::view::ViewState;
@@ -222,7 +223,15 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
         }
         let delta = diff_delta(&engine, &base, &target, 1);
         let resp = LodResponse {
-            delta: WireDelta::pack(&delta, shape, engine.geometry().z_quantum, &engine),
+            delta: WireDelta::pack(
+                &delta,
+                shape,
+                engine.geometry().z_quantum,
+                Known {
+                    parents: &engine,
+                    cut: &target,
+                },
+            ),
             snapshot: Snapshot::of(shape, &target),
         };
         st.metrics.observe_update(started.elapsed().as_secs_f64());

@@ -18,7 +18,7 @@ use crate::lod::vertex::session::VertexSession;
 use crate::lod::vertex::{LodParams, UpdateStats, VertexEngine};
 use crate::store::Store;
 use relief_proto::cut::Cut;
-use relief_proto::delta::BodyModels;
+use relief_proto::delta::{BodyModels, Known};
 use relief_proto::view::{Camera, Lens, ViewState};
 
 /// How a session's cut is kept.
@@ -113,7 +113,7 @@ impl Stream {
         self.seq += 1;
         let seq = self.seq;
         let view = ViewState::new(camera, &self.lens);
-        let (delta, complete) = match &mut self.lod {
+        let (delta, complete, after) = match &mut self.lod {
             Lod::Tiles(s) => {
                 let u = s.update(&TileEngine::new(store), &view, max_body_bytes);
                 return Produced {
@@ -132,7 +132,7 @@ impl Stream {
                     seq,
                     &mut UpdateStats::default(),
                 );
-                (d, true)
+                (d, true, s.cut_ref())
             }
             Lod::Budgeted(cut) => {
                 let engine = VertexEngine::new(store);
@@ -145,7 +145,7 @@ impl Stream {
                     self.models.get_or_insert_with(Box::default),
                     seq,
                 );
-                (b.delta, b.complete)
+                (b.delta, b.complete, &*cut)
             }
         };
         let g = store.geometry();
@@ -157,7 +157,10 @@ impl Stream {
                 &g.shape,
                 self.models.get_or_insert_with(Box::default),
                 g.z_quantum,
-                &VertexEngine::new(store),
+                Known {
+                    parents: &VertexEngine::new(store),
+                    cut: after,
+                },
             ),
         }
     }

@@ -26,7 +26,7 @@
 
 use relief_proto::close::CloseReason;
 use relief_proto::codec::{HARD_LIMIT, decode, encode};
-use relief_proto::delta::BodyModels;
+use relief_proto::delta::{BodyModels, Known};
 use relief_proto::mesh::scene::{Pool, Scene};
 use relief_proto::mesh::{FanMesh, MorphRule};
 use relief_proto::mirror::{Change, Mirror};
@@ -370,7 +370,7 @@ impl TileSession {
                     } => {
                         let delta = d
                             .delta
-                            .unpack_in(&geom.shape, geom.z_quantum, models, &**mirror)
+                            .unpack_in(&geom.shape, geom.z_quantum, models, Known::mirror(mirror))
                             .map_err(|e| JsError::new(&format!("desync: bad delta: {e}")))?;
                         changes.clear();
                         mirror

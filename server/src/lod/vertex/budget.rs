@@ -32,7 +32,7 @@
 use super::{LodParams, VertexEngine};
 use relief_proto::bits::{best_order, eg_len, zigzag};
 use relief_proto::cut::Cut;
-use relief_proto::delta::{BodyModels, Delta, Split, predicted_code};
+use relief_proto::delta::{BodyModels, Delta, Known, Split, predicted_code};
 use relief_proto::tree::NodeId;
 use relief_proto::view::ViewState;
 use std::cmp::Ordering;
@@ -180,8 +180,13 @@ pub fn budgeted_update(
 
     // Greedy splits while the estimate fits; the first one regardless.
     let budget_bits = (max_body_bytes as u64).saturating_mul(8);
+    // The cut holds the merges and no split yet: the cut after this delta.
+    let known = Known {
+        parents: engine,
+        cut,
+    };
     let mut bits = delta
-        .pack_body_in(shape, &mut models.clone(), geom.z_quantum, engine)
+        .pack_body_in(shape, &mut models.clone(), geom.z_quantum, known)
         .len() as u64
         * 8;
     let mut levels = 0u64;
@@ -214,22 +219,36 @@ pub fn budgeted_update(
     let mut complete = heap.is_empty();
 
     // The real size; past the budget, keep the longest prefix that fits (at least one split;
-    // the body grows with the prefix, so a binary search finds it).
-    let packed = |delta: &mut Delta, splits: &[Split]| {
+    // the body grows with the prefix, so a binary search finds it). A prefix's body is packed
+    // against the cut after it (merges rank against it): the splits past the prefix are undone
+    // for the measure, children first, and done again, parents first (`taken` is in the order
+    // they were split).
+    let packed = |delta: &mut Delta, cut: &mut Cut, taken: &[Split], k: usize| {
+        for s in taken[k..].iter().rev() {
+            let _ = cut.merge(shape, s.node);
+        }
         delta.splits.clear();
-        delta.splits.extend_from_slice(splits);
-        delta
-            .pack_body_in(shape, &mut models.clone(), geom.z_quantum, engine)
-            .len()
+        delta.splits.extend_from_slice(&taken[..k]);
+        let known = Known {
+            parents: engine,
+            cut,
+        };
+        let n = delta
+            .pack_body_in(shape, &mut models.clone(), geom.z_quantum, known)
+            .len();
+        for s in &taken[k..] {
+            let _ = cut.split(shape, s.node);
+        }
+        n
     };
-    let mut bytes = packed(&mut delta, &taken);
+    let mut bytes = packed(&mut delta, cut, &taken, taken.len());
     if bytes > max_body_bytes && taken.len() > 1 {
         // Invariant: the prefix of `lo` splits is kept (it fits, or is the minimum of one);
         // the prefix of `hi` does not fit.
         let (mut lo, mut hi) = (1, taken.len());
         while hi - lo > 1 {
             let mid = lo + (hi - lo) / 2;
-            if packed(&mut delta, &taken[..mid]) <= max_body_bytes {
+            if packed(&mut delta, cut, &taken, mid) <= max_body_bytes {
                 lo = mid;
             } else {
                 hi = mid;
@@ -240,7 +259,7 @@ pub fn budgeted_update(
             let _ = cut.merge(shape, s.node);
         }
         taken.truncate(lo);
-        bytes = packed(&mut delta, &taken);
+        bytes = packed(&mut delta, cut, &taken, lo);
         complete = false;
     }
     delta.splits = taken;
@@ -294,8 +313,12 @@ mod tests {
         let (mut server, mut client) = (BodyModels::new(), BodyModels::new());
         for seq in 1..20_000 {
             let b = budgeted_update(engine, &mut cut, view, p, budget, &server, seq);
+            let known = Known {
+                parents: engine,
+                cut: &cut,
+            };
             let wire =
-                WireDelta::pack_in(&b.delta, &geom.shape, &mut server, geom.z_quantum, engine);
+                WireDelta::pack_in(&b.delta, &geom.shape, &mut server, geom.z_quantum, known);
             assert_eq!(wire.body.len(), b.bytes);
             assert!(
                 b.bytes <= budget || b.delta.splits.len() <= 1,
@@ -303,7 +326,12 @@ mod tests {
                 b.bytes
             );
             let back = wire
-                .unpack_in(&geom.shape, geom.z_quantum, &mut client, &mirror)
+                .unpack_in(
+                    &geom.shape,
+                    geom.z_quantum,
+                    &mut client,
+                    Known::mirror(&mirror),
+                )
                 .unwrap();
             mirror.apply(geom, &back, |_, _| {}).unwrap();
             assert_eq!(mirror.cut().digest(), cut.digest());
@@ -341,7 +369,8 @@ mod tests {
                                         i as u64);
                 prop_assert!(b.complete);
                 let geom = engine.geometry();
-                prop_assert_eq!(b.bytes, d.pack_body_in(&geom.shape, &mut models, geom.z_quantum, &engine).len());
+                let known = Known { parents: &engine, cut: &full };
+                prop_assert_eq!(b.bytes, d.pack_body_in(&geom.shape, &mut models, geom.z_quantum, known).len());
                 prop_assert_eq!(b.delta, d);
             }
         }
@@ -436,7 +465,10 @@ mod tests {
                     &engine.geometry().shape,
                     &mut models,
                     engine.geometry().z_quantum,
-                    &engine,
+                    Known {
+                        parents: &engine,
+                        cut: &cut,
+                    },
                 );
                 assert_eq!(body.len(), b.bytes);
                 assert!(!b.complete);

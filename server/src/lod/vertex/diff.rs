@@ -47,6 +47,7 @@ pub(super) mod tests {
     use crate::lod::vertex::{LodParams, UpdateStats};
     use crate::store::Store;
     use proptest::prelude::*;
+    use relief_proto::delta::Known;
     use relief_proto::mirror::Mirror;
     use relief_proto::msg::WireDelta;
     use relief_proto::path::{PathKind, camera_path};
@@ -72,8 +73,12 @@ pub(super) mod tests {
             .unwrap();
         // Tags on the server's side must not matter.
         let d = diff_delta(&engine, &from.tagged(&geom.shape), to, 1);
-        let back = WireDelta::pack(&d, &geom.shape, geom.z_quantum, &engine)
-            .unpack(&geom.shape, geom.z_quantum, &mirror)
+        let known = Known {
+            parents: &engine,
+            cut: to,
+        };
+        let back = WireDelta::pack(&d, &geom.shape, geom.z_quantum, known)
+            .unpack(&geom.shape, geom.z_quantum, Known::mirror(&mirror))
             .unwrap();
         assert_eq!(back, d);
         mirror.apply(geom, &back, |_, _| {}).unwrap();

@@ -87,6 +87,11 @@ impl VertexSession {
         self.cut.clone()
     }
 
+    /// The current cut, borrowed (a delta's body is packed against it: [`relief_proto::delta::Known`]).
+    pub fn cut_ref(&self) -> &Cut {
+        &self.cut
+    }
+
     /// The current cut's digest.
     pub fn digest(&self) -> u64 {
         self.cut.digest()

@@ -7,7 +7,7 @@ use crate::store::{Store, StoreInput, StoreMeta, write_store};
 use glam::Vec3;
 use proptest::prelude::*;
 use relief_proto::cut::Cut;
-use relief_proto::delta::{BodyModels, Delta};
+use relief_proto::delta::{BodyModels, Delta, Known};
 use relief_proto::mirror::{Mirror, MirrorError};
 use relief_proto::msg::WireDelta;
 use relief_proto::tree::NodeId;
@@ -133,14 +133,16 @@ proptest! {
         let mut mirror = Mirror::new(geom, s.root_z());
         // One connection: the body models carry from delta to delta on both ends.
         let (mut server, mut client) = (BodyModels::new(), BodyModels::new());
-        let first = WireDelta::pack_in(&engine.full_delta(&cut, 0), &geom.shape, &mut server, geom.z_quantum, &engine);
-        let first = first.unpack_in(&geom.shape, geom.z_quantum, &mut client, &mirror).unwrap();
+        let first = WireDelta::pack_in(&engine.full_delta(&cut, 0), &geom.shape, &mut server, geom.z_quantum,
+                                       Known { parents: &engine, cut: &cut });
+        let first = first.unpack_in(&geom.shape, geom.z_quantum, &mut client, Known::mirror(&mirror)).unwrap();
         mirror.apply(geom, &first, |_, _| {}).unwrap();
         for (i, t) in poses.iter().enumerate() {
             let view = ViewState::new(&camera(w, h, *t), &lens());
             let d = engine.update(&mut cut, &view, &p, i as u64 + 1, &mut st);
-            let wire = WireDelta::pack_in(&d, &geom.shape, &mut server, geom.z_quantum, &engine);
-            let back = wire.unpack_in(&geom.shape, geom.z_quantum, &mut client, &mirror).unwrap();
+            let wire = WireDelta::pack_in(&d, &geom.shape, &mut server, geom.z_quantum,
+                                          Known { parents: &engine, cut: &cut });
+            let back = wire.unpack_in(&geom.shape, geom.z_quantum, &mut client, Known::mirror(&mirror)).unwrap();
             prop_assert_eq!(&back, &d);
             mirror.apply(geom, &back, |_, _| {}).unwrap();
             prop_assert_eq!(active_set(mirror.cut(), &geom.shape), active_set(&cut, &geom.shape));
