@@ -18,8 +18,9 @@
 //! It is the cost of an ideal coder of these symbols with these contexts, each context's
 //! distribution fixed for the run and known in advance. Merges are not in it:
 //! `split_bytes_mean` counts them, so the two differ by the merges' positions too.
-//! [`SplitEntropy::delta_bytes_per_split`] adds the merge positions (level steps and buckets in
-//! contexts of their own, raw bits at one bit each): the benchmark's `delta_entropy_bytes`.
+//! [`SplitEntropy::delta_bytes_per_split`] adds the merge positions (level steps and the buckets
+//! of their ranks in the client's cut, protocol 5, in contexts of their own, raw bits at one bit
+//! each): the benchmark's `delta_entropy_bytes`.
 //!
 //! Neither is a floor for the real coder. Its models adapt: where a context's statistics drift
 //! along the path (near and far terrain, rough and smooth ground) they track them, and they carry
