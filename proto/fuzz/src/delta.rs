@@ -90,16 +90,7 @@ fn against_a_deeper_cut(shape: &TreeShape, quantum: f32, body: &[u8]) -> bool {
         return false;
     };
     let mut after = before.clone();
-    let fits = delta
-        .merges
-        .iter()
-        .rev()
-        .all(|&m| after.merge(shape, m).is_ok())
-        && delta
-            .splits
-            .iter()
-            .all(|s| after.split(shape, s.node).is_ok());
-    if !fits {
+    if !applies(shape, &mut after, &delta) {
         return true;
     }
     let packed = delta.pack_body(
@@ -113,6 +104,20 @@ fn against_a_deeper_cut(shape: &TreeShape, quantum: f32, body: &[u8]) -> bool {
     let again = Delta::unpack_body(shape, quantum, SEQ, 0, &packed, known).expect("a packed body");
     assert_eq!(again, delta);
     true
+}
+
+/// Makes `delta`'s merges (deepest first) and splits on `cut`; whether all of them could be
+/// made.
+fn applies(shape: &TreeShape, cut: &mut Cut, delta: &Delta) -> bool {
+    delta
+        .merges
+        .iter()
+        .rev()
+        .all(|&m| cut.merge(shape, m).is_ok())
+        && delta
+            .splits
+            .iter()
+            .all(|s| cut.split(shape, s.node).is_ok())
 }
 
 /// The cut whose inner nodes down to level 3 are all interior.
@@ -132,15 +137,7 @@ fn deeper_cut(shape: &TreeShape) -> Cut {
 fn apply(geom: &TerrainGeometry, quantum: f32, delta: Delta) {
     let shape = &geom.shape;
     let mut shadow = Cut::root(shape);
-    let fits = delta
-        .merges
-        .iter()
-        .rev()
-        .all(|&m| shadow.merge(shape, m).is_ok())
-        && delta
-            .splits
-            .iter()
-            .all(|s| shadow.split(shape, s.node).is_ok());
+    let fits = applies(shape, &mut shadow, &delta);
     let delta = Delta {
         digest: shadow.digest(),
         ..delta

@@ -98,18 +98,9 @@ impl SplitEntropy {
         }
         let mut predictor = Predictor::new(known.parents);
         for (k, &(level, _, s)) in splits.iter().enumerate() {
-            let predicted = predictor.predict(
-                shape,
-                k,
-                s.node,
-                |j| splits[j].2.node,
-                |j| splits[j].2.details,
-            );
-            for (i, (d, p)) in s.details.into_iter().zip(predicted).enumerate() {
-                self.count(
-                    Context::Detail(level, i as u8),
-                    zigzag(d.wrapping_sub(p) as i64),
-                );
+            let residuals = predictor.residuals(shape, &splits, k);
+            for (i, r) in residuals.into_iter().enumerate() {
+                self.count(Context::Detail(level, i as u8), r);
             }
             let residual = zigzag(s.err_code as i64 - predicted_code(s.details, quantum) as i64);
             self.count(Context::Residual, residual);
@@ -158,7 +149,7 @@ mod tests {
     use super::*;
     use crate::cut::Cut;
     use crate::delta::Split;
-    use crate::delta::tests::alone;
+    use crate::delta::tests::{alone, full_cut};
     use crate::tree::{NodeId, TreeShape};
 
     /// A split of the level-3 node whose Morton code is `m`.
@@ -221,14 +212,7 @@ mod tests {
     fn merges_count_in_the_delta_entropy_only() {
         let shape = TreeShape::new(65, 65).unwrap();
         // Every inner node interior but the merged ones: a merge's rank is its Morton gap.
-        let mut after = Cut::root(&shape);
-        let mut stack = vec![NodeId::ROOT];
-        while let Some(n) = stack.pop() {
-            if !shape.is_leaf(n) {
-                after.split(&shape, n).unwrap();
-                stack.extend(shape.children(n).map(|(_, c)| c));
-            }
-        }
+        let mut after = full_cut(&shape);
         let mut d = Delta {
             splits: (0..8).map(|x| split(x, [5, -3, 1])).collect(),
             ..Delta::default()

@@ -184,15 +184,9 @@ impl Delta {
         }
         let mut predictor = Predictor::new(known.parents);
         for (i, &(level, _, s)) in splits.iter().enumerate() {
-            let predicted = predictor.predict(
-                shape,
-                i,
-                s.node,
-                |k| splits[k].2.node,
-                |k| splits[k].2.details,
-            );
-            for ((d, p), model) in s.details.iter().zip(predicted).zip(models.details(level)) {
-                e.value(model, zigzag(d.wrapping_sub(p) as i64));
+            let residuals = predictor.residuals(shape, &splits, i);
+            for (r, model) in residuals.into_iter().zip(models.details(level)) {
+                e.value(model, r);
             }
             let residual = s.err_code as i64 - predicted_code(s.details, quantum) as i64;
             e.value(&mut models.residual, zigzag(residual));
@@ -381,7 +375,8 @@ fn spread(v: u32) -> u64 {
     (x | (x << 1)) & 0x5555_5555_5555_5555
 }
 
-fn compact(v: u64) -> u32 {
+/// The even bits of `v`, packed: x from a Morton code (`compact(code >> 1)` is y).
+pub(crate) fn compact(v: u64) -> u32 {
     let mut x = v & 0x5555_5555_5555_5555;
     x = (x | (x >> 1)) & 0x3333_3333_3333_3333;
     x = (x | (x >> 2)) & 0x0F0F_0F0F_0F0F_0F0F;
@@ -535,6 +530,19 @@ pub(crate) mod tests {
         }
     }
 
+    /// The cut with every inner node interior (the full-resolution mesh).
+    pub(crate) fn full_cut(shape: &TreeShape) -> Cut {
+        let mut cut = Cut::root(shape);
+        let mut stack = vec![NodeId::ROOT];
+        while let Some(n) = stack.pop() {
+            if !shape.is_leaf(n) {
+                cut.split(shape, n).unwrap();
+                stack.extend(shape.children(n).map(|(_, c)| c));
+            }
+        }
+        cut
+    }
+
     /// A delta in wire order from `shadow`'s cut, as deltas go: a few merges of nodes whose
     /// children are all active (and now and then the parent of one, when that leaves its
     /// children all active: a merge chain, as between distant cuts), then splits of active
@@ -661,14 +669,7 @@ pub(crate) mod tests {
         fn random_bodies_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
             let shape = TreeShape::new(33, 20).unwrap();
             // Every inner node interior: merges of any rank select something.
-            let mut full = Cut::root(&shape);
-            let mut stack = vec![NodeId::ROOT];
-            while let Some(n) = stack.pop() {
-                if !shape.is_leaf(n) {
-                    full.split(&shape, n).unwrap();
-                    stack.extend(shape.children(n).map(|(_, c)| c));
-                }
-            }
+            let full = full_cut(&shape);
             let _ = Delta::unpack_body(&shape, 0.25, 0, 0, &bytes, alone(&full));
             let _ = Delta::unpack_body(&shape, 0.25, 0, 0, &bytes, alone(&Cut::root(&shape)));
         }

@@ -18,10 +18,11 @@
 //! detail bytes a split fell from 2.88 to 2.49 on synthetic:4097 and from 2.59 to 2.43 on
 //! fuji_srtm3 (`docs/vertex-stream.md`).
 
+use crate::bits::zigzag;
 use crate::haar::{Presence, Quad, forward};
 use crate::tree::{NodeId, TreeShape};
 
-use super::wire_key;
+use super::{Split, wire_key};
 
 /// Where a body's coder finds the details of a split's parent that did not split in the same
 /// body: the client's mirror, the server's store.
@@ -103,5 +104,25 @@ impl<'p> Predictor<'p> {
             if p.east { pd[1] >> 1 } else { 0 },
             if p.east && p.south { pd[2] >> 2 } else { 0 },
         ]
+    }
+
+    /// What the body sends for the details of `splits[i]`, splits in wire order with their
+    /// levels and Morton codes (as the packer sorts them): each detail less its prediction
+    /// (wrapping), zigzag-mapped.
+    pub(super) fn residuals(
+        &mut self,
+        shape: &TreeShape,
+        splits: &[(u8, u64, &Split)],
+        i: usize,
+    ) -> [u64; 3] {
+        let s = splits[i].2;
+        let p = self.predict(
+            shape,
+            i,
+            s.node,
+            |k| splits[k].2.node,
+            |k| splits[k].2.details,
+        );
+        std::array::from_fn(|c| zigzag(i64::from(s.details[c].wrapping_sub(p[c]))))
     }
 }

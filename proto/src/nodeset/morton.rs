@@ -9,20 +9,10 @@
 //! its cost is the pages it passes, not the nodes.
 
 use super::{NodeSet, SUPER_SHIFT};
+use crate::delta::compact;
 
 /// Bits of Morton code per superpage.
 const SUPER_BITS: u32 = 2 * SUPER_SHIFT;
-
-/// The even bits of `m`, packed (x from a Morton code; `compact(m >> 1)` is y).
-fn compact(m: u64) -> u32 {
-    let mut x = m & 0x5555_5555_5555_5555;
-    x = (x | (x >> 1)) & 0x3333_3333_3333_3333;
-    x = (x | (x >> 2)) & 0x0F0F_0F0F_0F0F_0F0F;
-    x = (x | (x >> 4)) & 0x00FF_00FF_00FF_00FF;
-    x = (x | (x >> 8)) & 0x0000_FFFF_0000_FFFF;
-    x = (x | (x >> 16)) & 0x0000_0000_FFFF_FFFF;
-    x as u32
-}
 
 impl NodeSet {
     /// Number of nodes of `level` in the set whose Morton code lies in `lo .. hi`.
