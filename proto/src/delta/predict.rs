@@ -58,8 +58,8 @@ fn presence(shape: &TreeShape, node: NodeId) -> Presence {
     }
 }
 
-/// Predicts the splits of one body in order. `node(k)` and `details(k)` are the body's `k`-th
-/// split and, for `k` before the one predicted, its details.
+/// Predicts the splits of one body in order ([`Predictor::predict`]: `node_at(k)` is the body's
+/// `k`-th split and `details_at(k)`, for `k` before the one predicted, its details).
 pub(super) struct Predictor<'p> {
     /// The source for parents outside the body.
     parents: &'p dyn Parents,
