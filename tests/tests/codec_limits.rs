@@ -39,10 +39,35 @@ static ALLOC: Counting = Counting;
 static SERIAL: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 fn largest_during(f: impl FnOnce()) -> usize {
+    largest_after(|| (), |_| f())
+}
+
+/// The largest allocation of `f` given what `setup` made, the setup done under the same lock
+/// (so that its allocations never land in another test's count) and not counted.
+fn largest_after<S>(setup: impl FnOnce() -> S, f: impl FnOnce(&S)) -> usize {
     let _guard = SERIAL.lock().unwrap_or_else(|e| e.into_inner());
+    let s = setup();
     LARGEST.store(0, Ordering::Relaxed);
-    f();
+    f(&s);
     LARGEST.load(Ordering::Relaxed)
+}
+
+/// A 4097 x 4097 tree and its root cut: a client's state at its session's start.
+fn client_at_start() -> (TreeShape, Cut) {
+    let shape = TreeShape::new(4097, 4097).unwrap();
+    let root = Cut::root(&shape);
+    (shape, root)
+}
+
+/// The largest allocation decoding `bytes` as a vertex delta body against [`client_at_start`].
+fn largest_decoding_body(bytes: &[u8]) -> usize {
+    largest_after(client_at_start, |(shape, root)| {
+        let known = Known {
+            parents: &NoParents,
+            cut: root,
+        };
+        let _ = Delta::unpack_body(shape, 0.1, 0, 0, bytes, known);
+    })
 }
 
 proptest! {
@@ -58,10 +83,7 @@ proptest! {
 
     #[test]
     fn random_bodies_stay_within_their_size(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
-        let shape = TreeShape::new(4097, 4097).unwrap();
-        let root = Cut::root(&shape);
-        let known = Known { parents: &NoParents, cut: &root };
-        let peak = largest_during(|| { let _ = Delta::unpack_body(&shape, 0.1, 0, 0, &bytes, known); });
+        let peak = largest_decoding_body(&bytes);
         // At most one entry per bit of input, of a few dozen bytes each.
         prop_assert!(peak <= 64 * 8 * bytes.len().max(1), "allocated {} bytes", peak);
     }
@@ -78,4 +100,13 @@ fn a_length_prefix_claiming_gigabytes_allocates_nothing_large() {
         assert!(decode::<ServerMsg>(&frame, HARD_LIMIT).is_err());
     });
     assert!(peak < 1 << 16, "allocated {peak} bytes");
+}
+
+/// 8 bytes of garbage that claim 77 merges and 154 splits: the splits' room was reserved for all
+/// 154 (4,312 bytes), past one entry per bit of the body (found by the property test above).
+#[test]
+fn a_short_body_reserves_no_more_than_its_bits() {
+    let bytes = [252u8, 119, 228, 0, 0, 0, 0, 0];
+    let peak = largest_decoding_body(&bytes);
+    assert!(peak <= 64 * 8 * bytes.len(), "allocated {peak} bytes");
 }

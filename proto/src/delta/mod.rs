@@ -245,15 +245,15 @@ impl Delta {
         let mut delta = Delta {
             seq,
             digest,
-            merges: Vec::with_capacity(reserve(n_merges)),
-            splits: Vec::with_capacity(reserve(n_splits)),
+            merges: Vec::with_capacity(reserve(n_merges, body.len())),
+            splits: Vec::with_capacity(reserve(n_splits, body.len())),
         };
         let mut prev = None;
         for _ in 0..n_merges {
             let node = next_merge(shape, &mut r, models, known.cut, &mut prev)?;
             delta.merges.push(node);
         }
-        let mut nodes = Vec::with_capacity(reserve(n_splits));
+        let mut nodes = Vec::with_capacity(reserve(n_splits, body.len()));
         let mut prev = None;
         for _ in 0..n_splits {
             nodes.push(next_node(
@@ -350,9 +350,12 @@ impl BodyModels {
 /// them made a 1 MiB body of garbage take 335 MB before it was refused (issue 12).
 pub const RESERVE_MAX: u64 = 1 << 12;
 
-/// Room to reserve for a list whose count a body claims.
-fn reserve(n: u64) -> usize {
-    n.min(RESERVE_MAX) as usize
+/// Room to reserve for a list whose count a body of `body_bytes` claims: no more than
+/// [`RESERVE_MAX`], nor than one entry per bit of the body (a list that really holds more grows
+/// as it decodes). Without the second bound, 8 bytes of garbage that claimed 154 splits
+/// reserved 4,312 bytes (`codec_limits`' property test found it).
+fn reserve(n: u64, body_bytes: usize) -> usize {
+    n.min(RESERVE_MAX).min(8 * body_bytes as u64) as usize
 }
 
 /// A node's place in wire order as one integer: its level, then its Morton code within the level
@@ -746,8 +749,9 @@ pub(crate) mod tests {
     /// claimed entry (a 1 MiB body, about 335 MB) before its second entry failed to decode.
     #[test]
     fn issue_12_lying_counts_reserve_little() {
-        assert_eq!(reserve(u64::MAX), RESERVE_MAX as usize);
-        assert_eq!(reserve(17), 17);
+        assert_eq!(reserve(u64::MAX, 1 << 20), RESERVE_MAX as usize);
+        assert_eq!(reserve(17, 1 << 20), 17);
+        assert_eq!(reserve(154, 8), 64);
         let shape = TreeShape::new(8193, 8193).unwrap();
         let mut e = Encoder::new();
         let mut counts = Value::default();
