@@ -141,6 +141,13 @@ impl Cut {
         self.interior.children_mask(node)
     }
 
+    /// Which of `node`'s grandchildren are interior: nibble `k` is
+    /// [`Cut::interior_children`] of child `k`, from one look-up.
+    #[inline]
+    pub fn interior_grandchildren(&self, node: NodeId) -> u16 {
+        self.interior.grandchildren_mask(node)
+    }
+
     /// Whether `node` is active: its parent is interior (or it is the root) and it is not.
     pub fn is_active(&self, shape: &TreeShape, node: NodeId) -> bool {
         shape.contains(node)

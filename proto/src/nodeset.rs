@@ -239,6 +239,19 @@ impl NodeSet {
         (self.pages[page][(bit >> 6) as usize] >> (bit & 63) & 15) as u8
     }
 
+    /// Which of `node`'s grandchildren are in the set: nibble `k` is
+    /// [`NodeSet::children_mask`] of child `k`. The 4 x 4 block of grandchildren is 16 aligned
+    /// bits of one page, so this is one look-up where the four children's masks are four.
+    #[inline]
+    pub fn grandchildren_mask(&self, node: NodeId) -> u16 {
+        if self.supers.is_empty() {
+            return 0;
+        }
+        let first = node.child(0).child(0);
+        let (page, bit) = self.locate(first);
+        (self.pages[page][(bit >> 6) as usize] >> (bit & 63) & 0xffff) as u16
+    }
+
     /// Adds `node`, an existing node of `shape`; returns whether it was absent.
     pub fn insert(&mut self, shape: &TreeShape, node: NodeId) -> bool {
         if self.supers.is_empty() {
@@ -455,6 +468,13 @@ mod tests {
                     let mask = set.children_mask(p);
                     for k in 0..4 {
                         prop_assert_eq!(mask >> k & 1 != 0, truth.contains(&p.child(k)));
+                    }
+                    if let Some(g) = p.parent() {
+                        let grand = set.grandchildren_mask(g);
+                        for k in 0..4 {
+                            let child = g.child(k);
+                            prop_assert_eq!(grand >> (4 * k) & 15, set.children_mask(child) as u16);
+                        }
                     }
                 }
             }

@@ -3,7 +3,7 @@
 
 use crate::haar::error_value;
 use crate::tree::{NodeId, ShapeError, TreeShape, WorldFrame};
-use crate::view::Aabb;
+use crate::view::{Aabb, QuadBoxes};
 use glam::Vec3;
 
 /// Everything needed to place a node in the world: shared by server and client.
@@ -71,6 +71,41 @@ impl TerrainGeometry {
     }
 }
 
+impl TerrainGeometry {
+    /// [`TerrainGeometry::node_box_with`] of the four children of `node` (one level above the
+    /// leaves or higher) at once, child `k` with height `zq[k]` quanta and static error `e[k]`
+    /// metres: the same numbers, each column's and row's computed once.
+    #[inline]
+    pub fn children_boxes_with(&self, node: NodeId, zq: [i32; 4], e: [f32; 4]) -> QuadBoxes {
+        // In u32, which holds every column and row of the nominal lattice (at most
+        // 2^MAX_DEPTH a side) and converts to f32 as the u64 of `node_box_with` does.
+        let s = self.shape.depth() - node.level - 1;
+        let span = |v: u32| {
+            let lo = v << s;
+            (lo, lo + (1u32 << s) - 1)
+        };
+        let (w, east) = (span(2 * node.x), span(2 * node.x + 1));
+        let (n, south) = (span(2 * node.y), span(2 * node.y + 1));
+        // to_world(c0, r0) gives x0 and y1, to_world(c1, r1) gives x1 and y0.
+        let corner = |(c0, c1): (u32, u32), (r0, r1): (u32, u32)| {
+            let (x0, y1) = self.frame.to_world(c0 as f32, r0 as f32);
+            let (x1, y0) = self.frame.to_world(c1 as f32, r1 as f32);
+            ([x0, x1], [y0, y1])
+        };
+        let (xw, yn) = corner(w, n);
+        let (xe, ys) = corner(east, south);
+        let z = |k: usize| {
+            let z = zq[k] as f32 * self.z_quantum;
+            [z - e[k], z + e[k]]
+        };
+        QuadBoxes {
+            x: [xw, xe],
+            y: [yn, ys],
+            z: [z(0), z(1), z(2), z(3)],
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -84,6 +119,17 @@ mod tests {
         assert_eq!((b.min.y, b.max.y), (-100.0, 40.0));
         assert!(b.min.z <= 47.0 && b.max.z >= 53.0);
         let p = g.world_pos(NodeId::ROOT, 100);
+        let node = NodeId {
+            level: 1,
+            x: 0,
+            y: 0,
+        };
+        let q = g.children_boxes_with(node, [1, 2, 3, 4], [0.5, 1.5, 2.5, 3.5]);
+        for k in 0..4 {
+            let c = node.child(k);
+            let one = g.node_box_with(c, k as i32 + 1, k as f32 + 0.5);
+            assert_eq!(q.aabb(k), one, "child {k}");
+        }
         assert_eq!(p.z, 50.0);
     }
 }

@@ -80,6 +80,29 @@ impl Lens {
     }
 }
 
+/// The boxes of a 2 x 2 quad of nodes (a node's children): box `k` spans column `k & 1`'s x
+/// range, row `k >> 1`'s y range and its own z range, each as `[min, max]` in world metres.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QuadBoxes {
+    /// The west and east columns' x ranges.
+    pub x: [[f32; 2]; 2],
+    /// The north and south rows' y ranges.
+    pub y: [[f32; 2]; 2],
+    /// Each box's z range.
+    pub z: [[f32; 2]; 4],
+}
+
+impl QuadBoxes {
+    /// Box `k`.
+    pub fn aabb(&self, k: usize) -> Aabb {
+        let ([x0, x1], [y0, y1], [z0, z1]) = (self.x[k & 1], self.y[k >> 1], self.z[k]);
+        Aabb {
+            min: Vec3::new(x0, y0, z0),
+            max: Vec3::new(x1, y1, z1),
+        }
+    }
+}
+
 /// An axis-aligned box in world metres.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
@@ -190,49 +213,53 @@ impl ViewState {
         }
     }
 
-    /// [`ViewState::box_view`] of four boxes at once, lane by lane with the same operations in
-    /// the same order (so bit for bit the same results), in a form the compiler vectorises: the
-    /// four children of a node are evaluated together.
+    /// [`ViewState::box_view`] of the four boxes of a 2 x 2 quad (a node's children), lane by
+    /// lane with the same operations in the same order, so bit for bit the same results. The
+    /// boxes share their x ranges by column and their y ranges by row, so every product of a
+    /// plane's normal with an x or y coordinate is computed once per column or row, not per box.
     #[inline]
-    pub fn box_views4(&self, b: &[Aabb; 4]) -> [BoxView; 4] {
-        // Generic, not `&dyn Fn`, and four plain calls, not `std::array::from_fn` (whose
-        // closures go through `try_from_fn` and were inlined or not depending on unrelated code
-        // in the caller's crate): the lanes must inline to vectorise, whatever the caller.
-        #[inline(always)]
-        fn lanes(f: impl Fn(usize) -> f32) -> [f32; 4] {
-            [f(0), f(1), f(2), f(3)]
-        }
-        let (e, f) = (self.eye, self.forward);
-        let lo = [
-            lanes(|i| b[i].min.x - e.x),
-            lanes(|i| b[i].min.y - e.y),
-            lanes(|i| b[i].min.z - e.z),
+    pub fn quad_views(&self, q: &QuadBoxes) -> [BoxView; 4] {
+        let e = self.eye;
+        let rel = |[lo, hi]: [f32; 2], e: f32| [lo - e, hi - e];
+        let rx = [rel(q.x[0], e.x), rel(q.x[1], e.x)];
+        let ry = [rel(q.y[0], e.y), rel(q.y[1], e.y)];
+        let rz = [
+            rel(q.z[0], e.z),
+            rel(q.z[1], e.z),
+            rel(q.z[2], e.z),
+            rel(q.z[3], e.z),
         ];
-        let hi = [
-            lanes(|i| b[i].max.x - e.x),
-            lanes(|i| b[i].max.y - e.y),
-            lanes(|i| b[i].max.z - e.z),
-        ];
+        // Lane k is the box in column k & 1 and row k >> 1.
         let mut margin = [f32::INFINITY; 4];
         for (k, n) in self.planes.iter().enumerate() {
-            let c = self.corners[k];
-            let pick = |a: usize| if c >> a & 1 != 0 { &hi[a] } else { &lo[a] };
-            let (px, py, pz) = (pick(0), pick(1), pick(2));
+            let c = self.corners[k] as usize;
+            let tx = [n.x * rx[0][c & 1], n.x * rx[1][c & 1]];
+            let ty = [n.y * ry[0][c >> 1 & 1], n.y * ry[1][c >> 1 & 1]];
             let offset = if k == 4 { self.near } else { 0.0 };
-            for i in 0..4 {
-                margin[i] = margin[i].min(n.x * px[i] + n.y * py[i] + n.z * pz[i] - offset);
+            for (i, m) in margin.iter_mut().enumerate() {
+                let tz = n.z * rz[i][c >> 2 & 1];
+                *m = m.min(tx[i & 1] + ty[i >> 1] + tz - offset);
             }
         }
         // The nearest corner along the view axis: the minimum where forward is >= 0.
-        let near = |a: usize, fa: f32| if fa >= 0.0 { &lo[a] } else { &hi[a] };
-        let (nx, ny, nz) = (near(0, f.x), near(1, f.y), near(2, f.z));
-        let far = |a: usize| lanes(|i| lo[a][i].abs().max(hi[a][i].abs()));
-        let (fx, fy, fz) = (far(0), far(1), far(2));
-        let view = |i: usize| BoxView {
-            margin: margin[i],
-            depth: f.x * nx[i] + f.y * ny[i] + f.z * nz[i],
-            r_max: (fx[i] * fx[i] + fy[i] * fy[i]).sqrt(),
-            d_max: (fx[i] * fx[i] + fy[i] * fy[i] + fz[i] * fz[i]).sqrt(),
+        let f = self.forward;
+        let near = |fa: f32| usize::from(fa < 0.0);
+        let (nx, ny, nz) = (near(f.x), near(f.y), near(f.z));
+        let dx = [f.x * rx[0][nx], f.x * rx[1][nx]];
+        let dy = [f.y * ry[0][ny], f.y * ry[1][ny]];
+        let far = |[lo, hi]: [f32; 2]| {
+            let a = lo.abs().max(hi.abs());
+            a * a
+        };
+        let (fx, fy) = ([far(rx[0]), far(rx[1])], [far(ry[0]), far(ry[1])]);
+        let view = |i: usize| {
+            let h = fx[i & 1] + fy[i >> 1];
+            BoxView {
+                margin: margin[i],
+                depth: dx[i & 1] + dy[i >> 1] + f.z * rz[i][nz],
+                r_max: h.sqrt(),
+                d_max: (h + far(rz[i])).sqrt(),
+            }
         };
         [view(0), view(1), view(2), view(3)]
     }
@@ -380,7 +407,7 @@ mod tests {
     }
 
     #[test]
-    fn four_boxes_at_once_are_bit_for_bit_one_at_a_time() {
+    fn a_quad_at_once_is_bit_for_bit_one_box_at_a_time() {
         let mut seed = 7u64;
         let mut rnd = || {
             seed = seed
@@ -388,24 +415,24 @@ mod tests {
                 .wrapping_add(1442695040888963407);
             ((seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
         };
-        for _ in 0..500 {
+        for _ in 0..2000 {
             let c = Camera {
                 eye: Vec3::new(rnd() * 100.0, rnd() * 100.0, 50.0 + rnd() * 40.0),
                 yaw: rnd() * 3.2,
                 pitch: rnd() * 1.5,
             };
             let v = ViewState::new(&c, &Lens::STANDARD);
-            let boxes: [Aabb; 4] = std::array::from_fn(|_| {
-                let p = Vec3::new(rnd() * 300.0, rnd() * 300.0, rnd() * 80.0);
-                let h = Vec3::new(rnd().abs() * 20.0, rnd().abs() * 20.0, rnd().abs() * 9.0);
-                Aabb {
-                    min: p - h,
-                    max: p + h,
-                }
-            });
-            let four = v.box_views4(&boxes);
-            for (b, got) in boxes.iter().zip(four) {
-                let one = v.box_view(b);
+            let mut range = |scale: f32| {
+                let (a, b) = (rnd() * scale, rnd() * scale);
+                [a.min(b), a.max(b)]
+            };
+            let q = QuadBoxes {
+                x: [range(300.0), range(300.0)],
+                y: [range(300.0), range(300.0)],
+                z: [range(80.0), range(80.0), range(80.0), range(80.0)],
+            };
+            for (k, got) in v.quad_views(&q).into_iter().enumerate() {
+                let one = v.box_view(&q.aabb(k));
                 assert_eq!(one.margin.to_bits(), got.margin.to_bits());
                 assert_eq!(one.depth.to_bits(), got.depth.to_bits());
                 assert_eq!(one.r_max.to_bits(), got.r_max.to_bits());

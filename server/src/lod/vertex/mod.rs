@@ -130,49 +130,23 @@ impl<'s> VertexEngine<'s> {
         view.error_of(&bv, err)
     }
 
-    /// The view terms of `node`'s box and its static error in metres.
-    pub fn box_view(&self, view: &ViewState, node: NodeId) -> (BoxView, f32) {
-        self.view_of(view, node, self.record(node))
-    }
-
-    /// The view terms and static errors of `node`'s children (those that `exists` has a bit for,
-    /// bit `k` for child `k`; the others are left at their defaults), from one quad of records.
+    /// The view terms and static errors of `node`'s four children, from one quad of records.
+    /// The lanes of children that do not exist (on the grid's east and south borders) hold
+    /// whatever their record slots give: callers look only at the children that exist.
     #[inline]
-    pub fn children_views(
-        &self,
-        view: &ViewState,
-        node: NodeId,
-        exists: u8,
-    ) -> [(BoxView, f32); 4] {
+    pub fn children_views(&self, view: &ViewState, node: NodeId) -> ([BoxView; 4], [f32; 4]) {
         let at = self.layout.children_slot(node);
         let quad = &self.nodes[at..at + 4];
-        // Absent children's lanes repeat child 0 and are marked culled with no error.
-        // Plain four-element arrays, not `std::array::from_fn`: its closures went through
-        // `try_from_fn`, and whether they were inlined changed with unrelated edits elsewhere in
-        // the crate (one build spent 20 % more on the from-scratch cut, stop 30).
-        let lane = |k: usize| if exists >> k & 1 != 0 { k } else { 0 };
-        let err = |k: usize| self.errors[rec_code(quad[lane(k)]) as usize];
+        let err = |k: usize| self.errors[rec_code(quad[k]) as usize];
         let errs = [err(0), err(1), err(2), err(3)];
-        let bx = |k: usize| {
-            let c = lane(k);
-            self.geom
-                .node_box_with(node.child(c), rec_z(quad[c]), errs[k])
-        };
-        let views = view.box_views4(&[bx(0), bx(1), bx(2), bx(3)]);
-        let out = |k: usize| {
-            if exists >> k & 1 != 0 {
-                (views[k], errs[k])
-            } else {
-                let culled = BoxView {
-                    margin: -1.0,
-                    depth: 0.0,
-                    r_max: 0.0,
-                    d_max: 0.0,
-                };
-                (culled, 0.0)
-            }
-        };
-        [out(0), out(1), out(2), out(3)]
+        let zq = [
+            rec_z(quad[0]),
+            rec_z(quad[1]),
+            rec_z(quad[2]),
+            rec_z(quad[3]),
+        ];
+        let views = view.quad_views(&self.geom.children_boxes_with(node, zq, errs));
+        (views, errs)
     }
 
     /// Which of `node`'s children exist: bit `k` for child `k` (`node` is an inner node).
@@ -222,8 +196,8 @@ impl<'s> VertexEngine<'s> {
                 continue;
             }
             let exists = self.existing_children(n);
-            let views = self.children_views(view, n, exists);
-            for (k, (bv, err)) in views.iter().enumerate() {
+            let (views, errs) = self.children_views(view, n);
+            for (k, (bv, err)) in views.iter().zip(&errs).enumerate() {
                 if exists >> k & 1 == 0 {
                     continue;
                 }

@@ -3,10 +3,15 @@
 //!
 //! The paper's top-down pass (paper 000, section 3.4; [`VertexEngine::update`]) touches every
 //! interior and active node on every update. This session produces exactly the same deltas, but
-//! it groups the checks by interior node: the group of an interior node `P` is the split check of
-//! each of its active children and, when all of them are active, `P`'s own merge check. After a
-//! group is examined, the engine computes a *slack*: how far the camera-relative position of `P`'s
-//! box may move before any of those decisions can flip. The bounds are the screen-error formula's
+//! it groups the checks by interior node: the group of an interior node `P` is the checks of its
+//! children, the split check of each active child and the merge check of each interior child
+//! whose own children are all active. The four children's boxes are one quad of records, so a
+//! group is one evaluation of four lanes ([`VertexEngine::children_views`]), and a node one level
+//! above the leaves, whose only check is its merge check, has no group of its own: its parent's
+//! covers it and three siblings at once. The root's merge check belongs to no group and runs at
+//! every update where the root's children are all active. After a
+//! group is examined, the engine computes a *slack*: how far the camera-relative position of the
+//! children's boxes may move before any of those decisions can flip. The bounds are the screen-error formula's
 //! own terms ([`BoxView`]) taken at their worst over that displacement: the nearest depth shrinks
 //! or grows by at most the displacement, the horizontal reach likewise, and the frustum test's
 //! margin likewise. Camera translation moves them by at most the eye's travel `T`. Camera rotation
@@ -19,13 +24,14 @@
 //!
 //! Due groups are examined as they come out of the schedule, in no order of depth. The full pass
 //! examines parents first, so a node whose child merged in this update may not merge before the
-//! next one: such nodes are *blocked* for the rest of the update (their split checks still run)
-//! and filed for the next update (coarsening moves one level per update). Splitting a child
+//! next one: such nodes are *blocked* for the rest of the update (the other checks of their
+//! parent's group still run) and their parent's group is filed for the next update (coarsening
+//! moves one level per update). Splitting a child
 //! examines the child's own new group at once (refinement goes as deep as the pose needs).
 //!
 //! The schedule ([`super::schedule`]) keeps one entry per interior node whose group checks
-//! anything, in flat per-band buckets; an interior node whose children are all interior checks
-//! nothing and is filed nowhere until a child merges. State per session: the cut's interior
+//! anything, in flat per-band buckets; an interior node whose children are leaves, or interior
+//! with interior children of their own, checks nothing and is filed nowhere. State per session: the cut's interior
 //! bitset with a 4-bit generation per interior node, and the schedule's entries (4 bytes each).
 //! Due groups are drained from every band before any is examined, then examined as they came out
 //! of the wheels (no sort).
@@ -148,9 +154,19 @@ impl VertexSession {
             if engine.screen_error(view, NodeId::ROOT) > p.tau {
                 self.cut.split_active(shape, NodeId::ROOT);
                 delta.splits.push(engine.split_payload(NodeId::ROOT));
-                self.process(engine, view, p, (NodeId::ROOT, None), &mut delta, stats);
+                self.process(engine, view, p, NodeId::ROOT, &mut delta, stats);
             }
         } else {
+            // The root's merge check belongs to no group: it runs at every update where its
+            // children are all active, first, as in the full pass (then no child can split: a
+            // child's screen error is at most its parent's).
+            if self.cut.interior_children(NodeId::ROOT) == 0 {
+                stats.visited += 1;
+                if engine.screen_error(view, NodeId::ROOT) < p.tau * p.merge_ratio {
+                    self.cut.merge_interior(shape, NodeId::ROOT);
+                    delta.merges.push(NodeId::ROOT);
+                }
+            }
             // Everything due is drained before anything is examined, so that a group filed
             // again during this update (its slack computed for this very pose) waits for the
             // next pose instead of coming out of a band drained after it. Due groups are then
@@ -168,7 +184,7 @@ impl VertexSession {
                 // the copy (the cut itself changes as they are examined).
                 for node in start.interior_nodes() {
                     if self.cut.is_interior(shape, node) && self.cut.tag(node) == 0 {
-                        self.process(engine, view, p, (node, None), &mut delta, stats);
+                        self.process(engine, view, p, node, &mut delta, stats);
                     }
                 }
             }
@@ -176,7 +192,7 @@ impl VertexSession {
                 let (node, generation) = self.schedule.entry_parts(e);
                 let tag = self.cut.interior_tag(node);
                 if tag.is_some_and(|t| self.schedule.generation(t) == generation) {
-                    self.process(engine, view, p, (node, None), &mut delta, stats);
+                    self.process(engine, view, p, node, &mut delta, stats);
                 }
             }
             let peak = due.len();
@@ -189,64 +205,80 @@ impl VertexSession {
         delta
     }
 
-    /// Examines the group of interior node `node` and files it again. `known` is the node's own
-    /// view terms and static error where the caller has them: a node it has just split, whose
-    /// merge check then needs no evaluation of its own (its error is over `tau`).
+    /// Examines the group of interior node `node` and files it again: the checks of its
+    /// children, all four evaluated together from one quad of records. An active child (not a
+    /// leaf) has its split check; an interior child whose children are all active has its merge
+    /// check; an interior child with an interior child has none.
     fn process(
         &mut self,
         engine: &VertexEngine<'_>,
         view: &ViewState,
         p: &LodParams,
-        (node, known): (NodeId, Option<&(BoxView, f32)>),
+        node: NodeId,
         delta: &mut Delta,
         stats: &mut UpdateStats,
     ) {
         let shape = &engine.geometry().shape;
-        let exists = engine.existing_children(node);
-        let active = exists & !self.cut.interior_children(node);
-        let mut bounds = Bounds::default();
-        if active == exists && self.blocked.contains(&node_index(node)) {
-            // A child merged in this update: the merge check waits for the next one.
-            bounds.due_now();
-        } else if active == exists {
-            let (bv, err) = match known {
-                Some(&own) => own,
-                None => {
-                    stats.visited += 1;
-                    engine.box_view(view, node)
-                }
-            };
-            let e = view.error_of(&bv, err);
-            if e < p.tau * p.merge_ratio {
-                self.cut.merge_interior(shape, node);
-                delta.merges.push(node);
-                if let Some(parent) = node.parent() {
-                    // Its group gained this node's split check and maybe its own merge check:
-                    // examined at the next update. Its entry stays live, since its other
-                    // checks may be due in this one.
-                    self.blocked.insert(node_index(parent));
-                    self.schedule.file_next(parent, self.cut.tag(parent));
-                }
-                return;
-            }
-            merge_slack(view, &bv, err, p.tau * p.merge_ratio, &mut bounds);
+        if node.level + 1 >= shape.depth() {
+            // Leaf children: nothing to check, nothing to file.
+            return;
         }
-        if node.level + 1 < shape.depth() && active != 0 {
-            let views = engine.children_views(view, node, active);
-            for (k, own) in views.iter().enumerate() {
-                if active >> k & 1 == 0 {
-                    continue;
+        let exists = engine.existing_children(node);
+        let interior = self.cut.interior_children(node);
+        let active = exists & !interior;
+        // Interior children of a node two levels above the leaves have leaves for children,
+        // which are never interior.
+        let mut mergeable = interior;
+        if interior != 0 && node.level + 2 < shape.depth() {
+            let grand = self.cut.interior_grandchildren(node);
+            for k in 0..4 {
+                if grand >> (4 * k) & 15 != 0 {
+                    mergeable &= !(1 << k);
                 }
-                stats.visited += 1;
+            }
+        }
+        let checked = active | mergeable;
+        let tau_m = p.tau * p.merge_ratio;
+        let mut bounds = Bounds::default();
+        if checked != 0 {
+            let (views, errs) = engine.children_views(view, node);
+            for (k, (cv, cerr)) in views.iter().zip(&errs).enumerate() {
                 let c = node.child(k);
-                let (cv, cerr) = own;
-                if view.error_of(cv, *cerr) > p.tau && !self.at_limit() {
-                    self.cut.split_active(shape, c);
-                    delta.splits.push(engine.split_payload(c));
-                    // Refine as deep as this pose needs, as the full pass does.
-                    self.process(engine, view, p, (c, Some(own)), delta, stats);
-                } else {
-                    split_slack(view, cv, *cerr, p.tau, &mut bounds);
+                if active >> k & 1 != 0 {
+                    stats.visited += 1;
+                    if view.error_of(cv, *cerr) > p.tau && !self.at_limit() {
+                        self.cut.split_active(shape, c);
+                        delta.splits.push(engine.split_payload(c));
+                        // Its merge check joins this group, and its error is over tau.
+                        merge_slack(view, cv, *cerr, tau_m, &mut bounds);
+                        // Refine as deep as this pose needs, as the full pass does.
+                        self.process(engine, view, p, c, delta, stats);
+                    } else {
+                        split_slack(view, cv, *cerr, p.tau, &mut bounds);
+                    }
+                } else if mergeable >> k & 1 != 0 {
+                    if self.blocked.contains(&node_index(c)) {
+                        // A child of it merged in this update: its merge check waits for the
+                        // next one.
+                        bounds.due_now();
+                        continue;
+                    }
+                    stats.visited += 1;
+                    if view.error_of(cv, *cerr) < tau_m {
+                        self.cut.merge_interior(shape, c);
+                        delta.merges.push(c);
+                        // Its split check joins this group, and its error is under tau. This
+                        // node may now merge, in its parent's group: at the next update. The
+                        // parent's entry stays live, since its other checks may be due in
+                        // this one.
+                        split_slack(view, cv, *cerr, p.tau, &mut bounds);
+                        self.blocked.insert(node_index(node));
+                        if let Some(parent) = node.parent() {
+                            self.schedule.file_next(parent, self.cut.tag(parent));
+                        }
+                    } else {
+                        merge_slack(view, cv, *cerr, tau_m, &mut bounds);
+                    }
                 }
             }
         }
