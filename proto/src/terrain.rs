@@ -59,41 +59,22 @@ impl TerrainGeometry {
     #[inline]
     pub fn node_box_with(&self, node: NodeId, zq: i32, e: f32) -> Aabb {
         let s = self.shape.depth() - node.level;
-        let (c0, r0) = ((node.x as u64) << s, (node.y as u64) << s);
-        let (c1, r1) = (c0 + (1u64 << s) - 1, r0 + (1u64 << s) - 1);
-        let (x0, y1) = self.frame.to_world(c0 as f32, r0 as f32);
-        let (x1, y0) = self.frame.to_world(c1 as f32, r1 as f32);
+        let ([x0, x1], [y0, y1]) = self.block_ranges(span(node.x, s), span(node.y, s));
         let z = zq as f32 * self.z_quantum;
         Aabb {
             min: Vec3::new(x0, y0, z - e),
             max: Vec3::new(x1, y1, z + e),
         }
     }
-}
 
-impl TerrainGeometry {
-    /// [`TerrainGeometry::node_box_with`] of the four children of `node` (one level above the
-    /// leaves or higher) at once, child `k` with height `zq[k]` quanta and static error `e[k]`
-    /// metres: the same numbers, each column's and row's computed once.
+    /// [`TerrainGeometry::node_box_with`] of the four children of `node` (an inner node) at
+    /// once, child `k` with height `zq[k]` quanta and static error `e[k]` metres: the same
+    /// numbers, each column's x range and each row's y range computed once.
     #[inline]
     pub fn children_boxes_with(&self, node: NodeId, zq: [i32; 4], e: [f32; 4]) -> QuadBoxes {
-        // In u32, which holds every column and row of the nominal lattice (at most
-        // 2^MAX_DEPTH a side) and converts to f32 as the u64 of `node_box_with` does.
         let s = self.shape.depth() - node.level - 1;
-        let span = |v: u32| {
-            let lo = v << s;
-            (lo, lo + (1u32 << s) - 1)
-        };
-        let (w, east) = (span(2 * node.x), span(2 * node.x + 1));
-        let (n, south) = (span(2 * node.y), span(2 * node.y + 1));
-        // to_world(c0, r0) gives x0 and y1, to_world(c1, r1) gives x1 and y0.
-        let corner = |(c0, c1): (u32, u32), (r0, r1): (u32, u32)| {
-            let (x0, y1) = self.frame.to_world(c0 as f32, r0 as f32);
-            let (x1, y0) = self.frame.to_world(c1 as f32, r1 as f32);
-            ([x0, x1], [y0, y1])
-        };
-        let (xw, yn) = corner(w, n);
-        let (xe, ys) = corner(east, south);
+        let (xw, yn) = self.block_ranges(span(2 * node.x, s), span(2 * node.y, s));
+        let (xe, ys) = self.block_ranges(span(2 * node.x + 1, s), span(2 * node.y + 1, s));
         let z = |k: usize| {
             let z = zq[k] as f32 * self.z_quantum;
             [z - e[k], z + e[k]]
@@ -104,6 +85,23 @@ impl TerrainGeometry {
             z: [z(0), z(1), z(2), z(3)],
         }
     }
+
+    /// The world x and y ranges `[min, max]` of the block spanning columns `c0 ..= c1` and rows
+    /// `r0 ..= r1` (row 0 is the north, so the first row gives the largest y).
+    #[inline]
+    fn block_ranges(&self, (c0, c1): (u32, u32), (r0, r1): (u32, u32)) -> ([f32; 2], [f32; 2]) {
+        let (x0, y1) = self.frame.to_world(c0 as f32, r0 as f32);
+        let (x1, y0) = self.frame.to_world(c1 as f32, r1 as f32);
+        ([x0, x1], [y0, y1])
+    }
+}
+
+/// The first and last sample of the nominal block of position `v` on a lattice whose blocks
+/// are `2^s` samples wide. In u32: the nominal lattice is at most `2^MAX_DEPTH` a side.
+#[inline]
+fn span(v: u32, s: u8) -> (u32, u32) {
+    let lo = v << s;
+    (lo, lo + (1u32 << s) - 1)
 }
 
 #[cfg(test)]
@@ -119,17 +117,27 @@ mod tests {
         assert_eq!((b.min.y, b.max.y), (-100.0, 40.0));
         assert!(b.min.z <= 47.0 && b.max.z >= 53.0);
         let p = g.world_pos(NodeId::ROOT, 100);
-        let node = NodeId {
-            level: 1,
-            x: 0,
-            y: 0,
-        };
-        let q = g.children_boxes_with(node, [1, 2, 3, 4], [0.5, 1.5, 2.5, 3.5]);
-        for k in 0..4 {
-            let c = node.child(k);
-            let one = g.node_box_with(c, k as i32 + 1, k as f32 + 0.5);
-            assert_eq!(q.aabb(k), one, "child {k}");
-        }
         assert_eq!(p.z, 50.0);
+    }
+
+    #[test]
+    fn children_boxes_are_each_childs_box() {
+        // Uneven spacing and a grid that is not a power of two plus one, so that border
+        // children and every level are covered.
+        let g = TerrainGeometry::new(37, 21, 30.5, 29.25, 0.1).unwrap();
+        let shape = &g.shape;
+        for level in 0..shape.depth() {
+            let (w, h) = shape.level_dims(level);
+            for (x, y) in (0..h).flat_map(|y| (0..w).map(move |x| (x, y))) {
+                let node = NodeId { level, x, y };
+                let zq = [10, -3, 250, 7];
+                let e = [0.5, 1.25, 0.0, 3.5];
+                let q = g.children_boxes_with(node, zq, e);
+                for k in 0..4 {
+                    let one = g.node_box_with(node.child(k), zq[k], e[k]);
+                    assert_eq!(q.aabb(k), one, "{node:?} child {k}");
+                }
+            }
+        }
     }
 }

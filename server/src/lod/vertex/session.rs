@@ -9,9 +9,9 @@
 //! group is one evaluation of four lanes ([`VertexEngine::children_views`]), and a node one level
 //! above the leaves, whose only check is its merge check, has no group of its own: its parent's
 //! covers it and three siblings at once. The root's merge check belongs to no group and runs at
-//! every update where the root's children are all active. After a
-//! group is examined, the engine computes a *slack*: how far the camera-relative position of the
-//! children's boxes may move before any of those decisions can flip. The bounds are the screen-error formula's
+//! every update where the root's children are all active. After a group is examined, the engine
+//! computes a *slack*: how far the camera-relative position of the children's boxes may move
+//! before any of those decisions can flip. The bounds are the screen-error formula's
 //! own terms ([`BoxView`]) taken at their worst over that displacement: the nearest depth shrinks
 //! or grows by at most the displacement, the horizontal reach likewise, and the frustum test's
 //! margin likewise. Camera translation moves them by at most the eye's travel `T`. Camera rotation
@@ -26,13 +26,14 @@
 //! examines parents first, so a node whose child merged in this update may not merge before the
 //! next one: such nodes are *blocked* for the rest of the update (the other checks of their
 //! parent's group still run) and their parent's group is filed for the next update (coarsening
-//! moves one level per update). Splitting a child
-//! examines the child's own new group at once (refinement goes as deep as the pose needs).
+//! moves one level per update). Splitting a child examines the child's own new group at once
+//! (refinement goes as deep as the pose needs).
 //!
 //! The schedule ([`super::schedule`]) keeps one entry per interior node whose group checks
 //! anything, in flat per-band buckets; an interior node whose children are leaves, or interior
-//! with interior children of their own, checks nothing and is filed nowhere. State per session: the cut's interior
-//! bitset with a 4-bit generation per interior node, and the schedule's entries (4 bytes each).
+//! with interior children of their own, checks nothing and is filed nowhere. State per session:
+//! the cut's interior bitset with a 4-bit generation per interior node, and the schedule's
+//! entries (4 bytes each).
 //! Due groups are drained from every band before any is examined, then examined as they came out
 //! of the wheels (no sort).
 
@@ -226,8 +227,9 @@ impl VertexSession {
         let exists = engine.existing_children(node);
         let interior = self.cut.interior_children(node);
         let active = exists & !interior;
-        // Interior children of a node two levels above the leaves have leaves for children,
-        // which are never interior.
+        // An interior child can merge when none of its children is interior (one read for all
+        // four: their grandchildren bits). Under a node two levels above the leaves the
+        // grandchildren are leaves, never interior, so there is nothing to read.
         let mut mergeable = interior;
         if interior != 0 && node.level + 2 < shape.depth() {
             let grand = self.cut.interior_grandchildren(node);
@@ -257,7 +259,7 @@ impl VertexSession {
                         split_slack(view, cv, *cerr, p.tau, &mut bounds);
                     }
                 } else if mergeable >> k & 1 != 0 {
-                    if self.blocked.contains(&node_index(c)) {
+                    if !self.blocked.is_empty() && self.blocked.contains(&node_index(c)) {
                         // A child of it merged in this update: its merge check waits for the
                         // next one.
                         bounds.due_now();
