@@ -15,6 +15,7 @@
 //! - [`msg`]: the wire messages; [`codec`]: their bincode encoding with a decode limit;
 //!   [`close`]: the reasons a session ends; [`snapshot`]: a cut in one bit per inner node.
 //! - [`errors`]: one-line error reports for the command lines.
+//! - [`float`]: minimum and maximum of floats that are never NaN, one instruction each.
 //! - [`path`]: the standard and stress camera paths.
 //! - [`query`]: terrain query batches and their answers (heights, HAT/HOT, rays, lines of
 //!   sight).
@@ -31,6 +32,7 @@ pub mod codec;
 pub mod cut;
 pub mod delta;
 pub mod errors;
+pub mod float;
 pub mod haar;
 pub mod mesh;
 pub mod mirror;

@@ -41,6 +41,7 @@ use super::schedule::{Schedule, node_index};
 use super::{LodParams, UpdateStats, VertexEngine};
 use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;
+use relief_proto::float::Extremum;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{BoxView, ViewState};
 use rustc_hash::FxHashSet;
@@ -339,7 +340,10 @@ impl Bounds {
 
     /// A check that holds while the frustum margin of box `bv` moves less than `slack`.
     fn margin(&mut self, slack: f64, bv: &BoxView) {
-        self.margin = (self.margin.0.min(slack), self.margin.1.max(bv.d_max as f64));
+        self.margin = (
+            self.margin.0.lesser(slack),
+            self.margin.1.greater(bv.d_max as f64),
+        );
     }
 
     /// A check that holds while the depth and reach of box `bv` move less than `slack`.
@@ -349,13 +353,13 @@ impl Bounds {
         // axis (when that is not negative), so at most this far off it.
         let z = bv.depth as f64;
         let off = if z > 0.0 {
-            (d * d - z * z).max(0.0).sqrt()
+            (d * d - z * z).greater(0.0).sqrt()
         } else {
             d
         };
-        self.depth = self.depth.min(slack);
-        self.off_axis = self.off_axis.max(off);
-        self.along = self.along.max(d);
+        self.depth = self.depth.lesser(slack);
+        self.off_axis = self.off_axis.greater(off);
+        self.along = self.along.greater(d);
     }
 
     /// The slack to file the group with and the lever arm of its band: the group is due once
@@ -369,16 +373,16 @@ impl Bounds {
     fn filing(&self) -> Option<(f64, f64)> {
         let (m, m_reach) = self.margin;
         let s = self.depth;
-        let slack = m.min(s).max(0.0);
+        let slack = m.lesser(s).greater(0.0);
         if !slack.is_finite() {
             return None;
         }
         if slack == 0.0 {
-            return Some((0.0, m_reach.max(self.along)));
+            return Some((0.0, m_reach.greater(self.along)));
         }
         let mut lever: f64 = 0.0;
         if m.is_finite() {
-            lever = lever.max(m_reach * slack / m);
+            lever = lever.greater(m_reach * slack / m);
         }
         if s.is_finite() {
             // lever^2 - (off_axis slack / s) lever - along slack^2 / (2 s) = 0, larger root.
@@ -386,7 +390,7 @@ impl Bounds {
                 self.off_axis * slack / s,
                 self.along * slack * slack / (2.0 * s),
             );
-            lever = lever.max((p + (p * p + 4.0 * q).sqrt()) / 2.0);
+            lever = lever.greater((p + (p * p + 4.0 * q).sqrt()) / 2.0);
         }
         Some((slack, lever))
     }
@@ -411,21 +415,21 @@ fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32, bounds: &mut 
     let c = z * z - a * r;
     let s_a = if z > near && c >= 0.0 {
         let b = 2.0 * z + a;
-        let disc = (b * b - 4.0 * c).max(0.0);
-        (2.0 * c / (b + disc.sqrt())).min(z - near)
+        let disc = (b * b - 4.0 * c).greater(0.0);
+        (2.0 * c / (b + disc.sqrt())).lesser(z - near)
     } else {
         0.0
     };
     // Branch e <= K err c / (z - d). Leaving the frustum only lowers the error.
-    let s_c = z - (a * view.off_axis() as f64).max(near);
-    bounds.depth(s_a.max(s_c).max(0.0), bv);
+    let s_c = z - (a * view.off_axis() as f64).greater(near);
+    bounds.depth(s_a.greater(s_c).greater(0.0), bv);
 }
 
 /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
 /// error at least `tau_m` stays at least `tau_m`.
 fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32, bounds: &mut Bounds) {
     let near = view.near() as f64;
-    let z = (bv.depth as f64).max(near);
+    let z = (bv.depth as f64).greater(near);
     let r = bv.r_max as f64;
     let b = view.focal() as f64 * err as f64 / tau_m as f64;
     // Branch e >= K err (r - d) / (z + d)^2: the larger root of (z + d)^2 = b (r - d).
@@ -439,6 +443,6 @@ fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32, bounds: &mu
     // Branch e >= K err c / (z + d).
     let s_c = b * view.off_axis() as f64 - z;
     // Leaving the frustum drops the error to 0.
-    bounds.margin((bv.margin as f64).max(0.0), bv);
-    bounds.depth(s_a.min(s_c).max(0.0), bv);
+    bounds.margin((bv.margin as f64).greater(0.0), bv);
+    bounds.depth(s_a.lesser(s_c).greater(0.0), bv);
 }
