@@ -346,15 +346,8 @@ impl Bounds {
         );
     }
 
-    /// A check that holds while the depth and reach of box `bv` move less than `slack` under
-    /// translation, and while `weight T + R <= weight slack`, where `R` is how far rotation
-    /// moves the depth: rotation moves only the depth (the reach is a horizontal distance,
-    /// the same in every orientation), and a check whose error moves `weight` times faster
-    /// under translation (which moves both) may let rotation move the depth that much further.
-    /// Dividing the rotation's terms by `weight` turns this into the one form the schedule
-    /// files, `T + lever K <= slack`.
-    fn depth(&mut self, slack: f64, weight: f64, bv: &BoxView) {
-        debug_assert!(weight >= 1.0, "weight {weight}");
+    /// A check that holds while the depth and reach of box `bv` move less than `slack`.
+    fn depth(&mut self, slack: f64, bv: &BoxView) {
         let d = bv.d_max as f64;
         // Every point of the box is at most `d_max` from the eye and at least `depth` along the
         // axis (when that is not negative), so at most this far off it.
@@ -365,8 +358,8 @@ impl Bounds {
             d
         };
         self.depth = self.depth.lesser(slack);
-        self.off_axis = self.off_axis.greater(off / weight);
-        self.along = self.along.greater(d / weight);
+        self.off_axis = self.off_axis.greater(off);
+        self.along = self.along.greater(d);
     }
 
     /// The slack to file the group with and the lever arm of its band: the group is due once
@@ -405,13 +398,6 @@ impl Bounds {
 
 /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
 /// error at most `tau` stays at most `tau`.
-///
-/// Branch A holds while the depth `z'` stays above `sqrt(a r')`. Translation by `T` and rotation
-/// moving the depth by `R` leave `z' >= z - T - R` and `r' <= r + T`, so it holds while
-/// `R <= z - T - sqrt(a (r + T))`. That bound is convex in `T`, so it lies above its tangent at
-/// the translation-only slack `s` (where it is 0), whose slope is `1 + a / (2 sqrt(a (r + s)))`:
-/// that slope is the rotation's weight. Staying beyond the near plane, and branch C, weigh
-/// translation and rotation alike.
 fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32, bounds: &mut Bounds) {
     if err <= 0.0 {
         return;
@@ -425,40 +411,22 @@ fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32, bounds: &mut 
     let z = bv.depth as f64;
     let r = bv.r_max as f64;
     let a = view.focal() as f64 * err as f64 / tau as f64;
-    // Branch e <= K err (r + d) / (z - d)^2: the smaller root of (z - d)^2 = a (r + d), and
-    // the depth must stay beyond the near plane. Both must hold: the weight keeps the rotation
-    // within the near plane's budget too.
+    // Branch e <= K err (r + d) / (z - d)^2: the smaller root of (z - d)^2 = a (r + d).
     let c = z * z - a * r;
-    let (s_a, w_a) = if z > near && c >= 0.0 {
+    let s_a = if z > near && c >= 0.0 {
         let b = 2.0 * z + a;
         let disc = (b * b - 4.0 * c).greater(0.0);
-        let root = 2.0 * c / (b + disc.sqrt());
-        if root < z - near {
-            let w = 1.0 + a / (2.0 * (a * (r + root)).sqrt());
-            (root, w.lesser((z - near) / root))
-        } else {
-            (z - near, 1.0)
-        }
+        (2.0 * c / (b + disc.sqrt())).lesser(z - near)
     } else {
-        (0.0, 1.0)
+        0.0
     };
     // Branch e <= K err c / (z - d). Leaving the frustum only lowers the error.
     let s_c = z - (a * view.off_axis() as f64).greater(near);
-    // Either branch keeps the check: the one with the larger slack.
-    if s_a >= s_c {
-        bounds.depth(s_a.greater(0.0), w_a, bv);
-    } else {
-        bounds.depth(s_c.greater(0.0), 1.0, bv);
-    }
+    bounds.depth(s_a.greater(s_c).greater(0.0), bv);
 }
 
 /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
 /// error at least `tau_m` stays at least `tau_m`.
-///
-/// Branch A holds while `R <= sqrt(b (r - T)) - z - T` (the depth may grow by `T + R`, the
-/// reach shrink by `T`). That bound is concave in `T`, so it lies above its chord from `T = 0`,
-/// where it is `sqrt(b r) - z`, to the translation-only slack `s`: the chord's slope is the
-/// rotation's weight. Branch C weighs translation and rotation alike.
 fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32, bounds: &mut Bounds) {
     let near = view.near() as f64;
     let z = (bv.depth as f64).greater(near);
@@ -466,29 +434,15 @@ fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32, bounds: &mu
     let b = view.focal() as f64 * err as f64 / tau_m as f64;
     // Branch e >= K err (r - d) / (z + d)^2: the larger root of (z + d)^2 = b (r - d).
     let c = z * z - b * r;
-    let (s_a, w_a) = if c <= 0.0 {
+    let s_a = if c <= 0.0 {
         let bb = 2.0 * z + b;
-        let root = -2.0 * c / (bb + (bb * bb - 4.0 * c).sqrt());
-        let at_rest = (b * r).sqrt() - z;
-        (
-            root,
-            if root > 0.0 {
-                (at_rest / root).greater(1.0)
-            } else {
-                1.0
-            },
-        )
+        -2.0 * c / (bb + (bb * bb - 4.0 * c).sqrt())
     } else {
-        (0.0, 1.0)
+        0.0
     };
     // Branch e >= K err c / (z + d).
     let s_c = b * view.off_axis() as f64 - z;
     // Leaving the frustum drops the error to 0.
     bounds.margin((bv.margin as f64).greater(0.0), bv);
-    // Both branches must hold: rotation alone may use the smaller of their budgets.
-    if s_a <= s_c && s_a > 0.0 {
-        bounds.depth(s_a, (w_a * s_a).lesser(s_c) / s_a, bv);
-    } else {
-        bounds.depth(s_a.lesser(s_c).greater(0.0), 1.0, bv);
-    }
+    bounds.depth(s_a.lesser(s_c).greater(0.0), bv);
 }
