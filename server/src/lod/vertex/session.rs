@@ -242,6 +242,10 @@ impl VertexSession {
         }
         let checked = active | mergeable;
         let tau_m = p.tau * p.merge_ratio;
+        // The slacks' `focal / tau` factors, one division per group instead of one per lane
+        // (they are bounds, with a safety factor: the rounding does not matter).
+        let focal = view.focal() as f64;
+        let (k_split, k_merge) = (focal / p.tau as f64, focal / tau_m as f64);
         let mut bounds = Bounds::default();
         if checked != 0 {
             let (views, errs) = engine.children_views(view, node);
@@ -253,11 +257,11 @@ impl VertexSession {
                         self.cut.split_active(shape, c);
                         delta.splits.push(engine.split_payload(c));
                         // Its merge check joins this group, and its error is over tau.
-                        merge_slack(view, cv, *cerr, tau_m, &mut bounds);
+                        merge_slack(view, cv, *cerr, k_merge, &mut bounds);
                         // Refine as deep as this pose needs, as the full pass does.
                         self.process(engine, view, p, c, delta, stats);
                     } else {
-                        split_slack(view, cv, *cerr, p.tau, &mut bounds);
+                        split_slack(view, cv, *cerr, k_split, &mut bounds);
                     }
                 } else if mergeable >> k & 1 != 0 {
                     if !self.blocked.is_empty() && self.blocked.contains(&node_index(c)) {
@@ -274,13 +278,13 @@ impl VertexSession {
                         // node may now merge, in its parent's group: at the next update. The
                         // parent's entry stays live, since its other checks may be due in
                         // this one.
-                        split_slack(view, cv, *cerr, p.tau, &mut bounds);
+                        split_slack(view, cv, *cerr, k_split, &mut bounds);
                         self.blocked.insert(node_index(node));
                         if let Some(parent) = node.parent() {
                             self.schedule.file_next(parent, self.cut.tag(parent));
                         }
                     } else {
-                        merge_slack(view, cv, *cerr, tau_m, &mut bounds);
+                        merge_slack(view, cv, *cerr, k_merge, &mut bounds);
                     }
                 }
             }
@@ -386,10 +390,8 @@ impl Bounds {
         }
         if s.is_finite() {
             // lever^2 - (off_axis slack / s) lever - along slack^2 / (2 s) = 0, larger root.
-            let (p, q) = (
-                self.off_axis * slack / s,
-                self.along * slack * slack / (2.0 * s),
-            );
+            let ratio = slack / s;
+            let (p, q) = (self.off_axis * ratio, self.along * slack * ratio / 2.0);
             lever = lever.greater((p + (p * p + 4.0 * q).sqrt()) / 2.0);
         }
         Some((slack, lever))
@@ -397,8 +399,8 @@ impl Bounds {
 }
 
 /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
-/// error at most `tau` stays at most `tau`.
-fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32, bounds: &mut Bounds) {
+/// error at most `tau` stays at most `tau`; `k` is `focal / tau`.
+fn split_slack(view: &ViewState, bv: &BoxView, err: f32, k: f64, bounds: &mut Bounds) {
     if err <= 0.0 {
         return;
     }
@@ -410,7 +412,7 @@ fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32, bounds: &mut 
     let near = view.near() as f64;
     let z = bv.depth as f64;
     let r = bv.r_max as f64;
-    let a = view.focal() as f64 * err as f64 / tau as f64;
+    let a = k * err as f64;
     // Branch e <= K err (r + d) / (z - d)^2: the smaller root of (z - d)^2 = a (r + d).
     let c = z * z - a * r;
     let s_a = if z > near && c >= 0.0 {
@@ -426,12 +428,12 @@ fn split_slack(view: &ViewState, bv: &BoxView, err: f32, tau: f32, bounds: &mut 
 }
 
 /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
-/// error at least `tau_m` stays at least `tau_m`.
-fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, tau_m: f32, bounds: &mut Bounds) {
+/// error at least `tau_m` stays at least `tau_m`; `k` is `focal / tau_m`.
+fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, k: f64, bounds: &mut Bounds) {
     let near = view.near() as f64;
     let z = (bv.depth as f64).greater(near);
     let r = bv.r_max as f64;
-    let b = view.focal() as f64 * err as f64 / tau_m as f64;
+    let b = k * err as f64;
     // Branch e >= K err (r - d) / (z + d)^2: the larger root of (z + d)^2 = b (r - d).
     let c = z * z - b * r;
     let s_a = if c <= 0.0 {
