@@ -320,8 +320,10 @@ struct Bounds {
     margin: (f64, f64),
     /// Depth and reach slack (metres).
     depth: f64,
-    /// The furthest distance off the view axis, and along it, of a box whose depth `depth` bounds.
-    off_axis: f64,
+    /// The square of the furthest distance off the view axis of a box whose depth `depth`
+    /// bounds (one square root per group at filing, not one per check: the root of the largest
+    /// square is the largest root, bit for bit), and the furthest distance along it.
+    off_axis_sq: f64,
     along: f64,
 }
 
@@ -330,7 +332,7 @@ impl Default for Bounds {
         Bounds {
             margin: (f64::INFINITY, 0.0),
             depth: f64::INFINITY,
-            off_axis: 0.0,
+            off_axis_sq: 0.0,
             along: 0.0,
         }
     }
@@ -356,13 +358,13 @@ impl Bounds {
         // Every point of the box is at most `d_max` from the eye and at least `depth` along the
         // axis (when that is not negative), so at most this far off it.
         let z = bv.depth as f64;
-        let off = if z > 0.0 {
-            (d * d - z * z).greater(0.0).sqrt()
+        let off_sq = if z > 0.0 {
+            (d * d - z * z).greater(0.0)
         } else {
-            d
+            d * d
         };
         self.depth = self.depth.lesser(slack);
-        self.off_axis = self.off_axis.greater(off);
+        self.off_axis_sq = self.off_axis_sq.greater(off_sq);
         self.along = self.along.greater(d);
     }
 
@@ -391,7 +393,10 @@ impl Bounds {
         if s.is_finite() {
             // lever^2 - (off_axis slack / s) lever - along slack^2 / (2 s) = 0, larger root.
             let ratio = slack / s;
-            let (p, q) = (self.off_axis * ratio, self.along * slack * ratio / 2.0);
+            let (p, q) = (
+                self.off_axis_sq.sqrt() * ratio,
+                self.along * slack * ratio / 2.0,
+            );
             lever = lever.greater((p + (p * p + 4.0 * q).sqrt()) / 2.0);
         }
         Some((slack, lever))
