@@ -5,10 +5,10 @@
 //!
 //! `cargo run --release -p relief-proto --example replay -- FILE [RUNS] [POSES] [STAGES] [EVICT_MB]`
 //!
-//! STAGES is `all` (the default), `mirror` (decode and mirror, no fans) or `decode`, to split
-//! the cost. EVICT_MB (default 0) writes that many megabytes between poses, untimed, so that
-//! each pose starts with cold caches as in `relief-server bench lod`, where the server's work
-//! runs between the client's.
+//! STAGES is `all` (the default), `mirror` (decode and mirror, no fans) or `decode` (the
+//! mirror then follows untimed), to split the cost. EVICT_MB (default 0) writes that many
+//! megabytes between poses, untimed, so that each pose starts with cold caches as in
+//! `relief-server bench lod`, where the server's work runs between the client's.
 
 use relief_proto::codec;
 use relief_proto::delta::{BodyModels, Delta, Known};
@@ -38,17 +38,21 @@ fn pose(
     mesh: &mut FanMesh,
     models: &mut BodyModels,
     stages: &str,
+    pending: &mut Option<Delta>,
 ) -> usize {
     let d = unwire(msg, geom, models, mirror);
     let shape = &geom.shape;
+    let changes = d.splits.len() + d.merges.len();
     match stages {
-        "decode" => {}
+        // The mirror still follows, untimed: merges are ranks in the client's cut, so the
+        // next delta decodes only against this one's result.
+        "decode" => *pending = Some(d),
         "mirror" => mirror.apply(geom, &d, |_, _| {}).expect("applies"),
         _ => mirror
             .apply(geom, &d, |c, ch| mesh.update_around(shape, c, ch.node()))
             .expect("applies"),
     }
-    d.splits.len() + d.merges.len()
+    changes
 }
 
 fn main() {
@@ -83,13 +87,25 @@ fn main() {
         mirror.apply(&geom, &first, |_, _| {}).expect("initial cut");
         let mut mesh = FanMesh::new(shape, mirror.cut());
         let mut us = Vec::with_capacity(msgs.len());
+        let mut pending = None;
         changes = 0;
         for (k, m) in msgs[1..].iter().enumerate() {
             evict.fill(k as u8);
             std::hint::black_box(&evict);
             let t0 = Instant::now();
-            changes += pose(m, &geom, &mut mirror, &mut mesh, &mut models, stages);
+            changes += pose(
+                m,
+                &geom,
+                &mut mirror,
+                &mut mesh,
+                &mut models,
+                stages,
+                &mut pending,
+            );
             us.push(t0.elapsed().as_secs_f64() * 1e6);
+            if let Some(d) = pending.take() {
+                mirror.apply(&geom, &d, |_, _| {}).expect("applies");
+            }
         }
         if stages == "all" {
             assert_eq!(
