@@ -224,11 +224,10 @@ impl ViewState {
     pub fn quad_views(&self, q: &QuadBoxes) -> [BoxView; 4] {
         type Lanes = [f32; 4];
         let e = self.eye;
-        let lanes = |f: &dyn Fn(usize) -> f32| -> Lanes { [f(0), f(1), f(2), f(3)] };
         // Per lane, the box's low and high coordinates relative to the eye.
-        let x = [0, 1].map(|h| lanes(&|i| q.x[i & 1][h] - e.x));
-        let y = [0, 1].map(|h| lanes(&|i| q.y[i >> 1][h] - e.y));
-        let z = [0, 1].map(|h| lanes(&|i| q.z[i][h] - e.z));
+        let x: [Lanes; 2] = [0, 1].map(|h| std::array::from_fn(|i| q.x[i & 1][h] - e.x));
+        let y: [Lanes; 2] = [0, 1].map(|h| std::array::from_fn(|i| q.y[i >> 1][h] - e.y));
+        let z: [Lanes; 2] = [0, 1].map(|h| std::array::from_fn(|i| q.z[i][h] - e.z));
         // `a x + b y + c z` lane by lane, as `Vec3::dot` computes it.
         let dot = |n: Vec3, px: &Lanes, py: &Lanes, pz: &Lanes| -> Lanes {
             let mut out = [0.0; 4];
