@@ -163,9 +163,13 @@ async fn compute(
     allowance: usize,
 ) -> Result<Produced, (CloseReason, String)> {
     if lod.is_cheap() {
-        // A tile update costs tens of microseconds: less than a trip to a blocking thread.
+        // A tile update, or a vertex update of a session whose updates have been cheap: tens
+        // of microseconds, less than a trip to a blocking thread. A panic fails this session
+        // as it would on a blocking thread, not the worker's other tasks.
         let started = Instant::now();
-        let produced = lod.update(&terrain.store, &camera, allowance);
+        let run = std::panic::AssertUnwindSafe(|| lod.update(&terrain.store, &camera, allowance));
+        let produced = std::panic::catch_unwind(run)
+            .map_err(|_| (CloseReason::Internal, "update failed: panicked".to_string()))?;
         state
             .metrics
             .observe_update(started.elapsed().as_secs_f64());
