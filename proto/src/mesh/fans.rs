@@ -178,20 +178,22 @@ impl FanMesh {
 ///
 /// Two corners have the same active node when their levels are equal and no block boundary of
 /// that level runs between them. Between columns `c` and `c + 1` the boundaries are those of
-/// the levels whose block size divides `c + 1`: the bits that differ between `c` and `c + 1`,
-/// shifted right by the block size's log, are then not all 0.
+/// the levels whose block size divides `c + 1`.
 fn record(depth: u8, c: u32, r: u32, [lnw, lne, lsw, lse]: [u8; 4]) -> u16 {
-    let (dx, dy) = (c ^ (c + 1), r ^ (r + 1));
-    let same = |la: u8, lb: u8, d: u32| la == lb && d >> (depth - la) == 0;
-    let diagonal = same(lnw, lse, dx | dy);
-    let a = !diagonal && !same(lnw, lsw, dy) && !same(lsw, lse, dx);
-    let b = !diagonal && !same(lnw, lne, dx) && !same(lne, lse, dy);
-    if !(a || b) {
-        return 0;
-    }
-    // A corner only a missing triangle uses is stored as 0.
-    let used = |l: u8, used: bool| if used { u16::from(l) } else { 0 };
-    u16::from(lnw) | used(lne, b) << 4 | used(lsw, a) << 8 | u16::from(lse) << 12
+    // Non-short-circuit `&` and `|` throughout: the levels vary from cell to cell, so branches
+    // on them mispredict; this way the record is straight-line code.
+    // A block boundary of level `l` runs between columns `c` and `c + 1` when the block size
+    // `2^(depth - l)` divides `c + 1`: the levels from `depth - tz(c + 1)` down are cut there.
+    let below = |v: u32| i32::from(depth) - v.trailing_zeros() as i32;
+    let (kx, ky) = (below(c + 1), below(r + 1));
+    let same = |la: u8, lb: u8, k: i32| (la == lb) & (i32::from(la) < k);
+    let diagonal = same(lnw, lse, kx.min(ky));
+    let a = !diagonal & !same(lnw, lsw, ky) & !same(lsw, lse, kx);
+    let b = !diagonal & !same(lnw, lne, kx) & !same(lne, lse, ky);
+    // A corner only a missing triangle uses is stored as 0, and an empty cell is 0.
+    let used = |l: u8, used: bool| u16::from(l) * u16::from(used);
+    (u16::from(lnw) | used(lne, b) << 4 | used(lsw, a) << 8 | u16::from(lse) << 12)
+        * u16::from(a | b)
 }
 
 /// Triangles in a cell record: one per corner level it uses besides NW and SE.
