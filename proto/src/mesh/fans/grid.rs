@@ -38,20 +38,14 @@ impl CellGrid {
         };
         let pg = self.cells.page_mut(p);
         let bit = 1u64 << i;
-        let old = if pg.present & bit != 0 {
-            pg.records[i as usize]
-        } else {
-            0
-        };
+        // An absent record is 0 in its page too (pages are made zeroed, and a record that
+        // empties is written 0), so the record is read without a branch on its presence bit.
+        let old = pg.records[i as usize];
         if old == record {
             return None;
         }
         pg.records[i as usize] = record;
-        if record != 0 {
-            pg.present |= bit;
-        } else {
-            pg.present &= !bit;
-        }
+        pg.present ^= bit * u64::from((old == 0) != (record == 0));
         if track {
             if pg.marks == 0 {
                 self.dirty_pages.push(p);

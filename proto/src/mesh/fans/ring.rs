@@ -51,7 +51,8 @@ impl Side {
 
     /// The first node's level, if its block reaches `at` or before.
     fn first_reaching(&self, at: u32) -> Option<u8> {
-        (self.start <= at).then(|| self.runs[0].1)
+        let &(_, level) = self.runs.first()?;
+        (self.start <= at).then_some(level)
     }
 
     /// The last node's level, if its block reaches `at` or beyond.
@@ -150,17 +151,20 @@ impl Ring {
             (west && south, (w0, r1 + 1), (w0, r1), 8),
             (east && south, (c1 + 1, r1 + 1), (c1, r1), 12),
         ];
+        // Each diagonal's level where a side's node reaches it (read for all four at once, not
+        // by a match per corner: its jump mispredicted; a missing side reaches nothing, and an
+        // off-grid sample is skipped below).
+        let alongs = [
+            (self.west.first_reaching(n0)).or(self.north.first_reaching(w0)),
+            (self.east.first_reaching(n0)).or(self.north.last_reaching(c1 + 1)),
+            (self.west.last_reaching(r1 + 1)).or(self.south.first_reaching(w0)),
+            (self.east.last_reaching(r1 + 1)).or(self.south.last_reaching(c1 + 1)),
+        ];
         for (k, (exists, sample, cell, shift)) in corners.into_iter().enumerate() {
             if !exists {
                 continue;
             }
-            let along = match k {
-                0 => (self.west.first_reaching(r0 - 1)).or(self.north.first_reaching(c0 - 1)),
-                1 => (self.east.first_reaching(r0 - 1)).or(self.north.last_reaching(c1 + 1)),
-                2 => (self.west.last_reaching(r1 + 1)).or(self.south.first_reaching(c0 - 1)),
-                _ => (self.east.last_reaching(r1 + 1)).or(self.south.last_reaching(c1 + 1)),
-            };
-            self.diagonal[k] = along.unwrap_or_else(|| match records {
+            self.diagonal[k] = alongs[k].unwrap_or_else(|| match records {
                 Some(g) => {
                     let level = (g.get(cell.0, cell.1) >> shift & 15) as u8;
                     debug_assert!(level > 0, "corner cell {cell:?} does not hold {sample:?}");
