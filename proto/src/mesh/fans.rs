@@ -180,12 +180,13 @@ impl FanMesh {
 /// that level runs between them. Between columns `c` and `c + 1` the boundaries are those of
 /// the levels whose block size divides `c + 1`.
 fn record(depth: u8, c: u32, r: u32, [lnw, lne, lsw, lse]: [u8; 4]) -> u16 {
-    // Non-short-circuit `&` and `|` throughout: the levels vary from cell to cell, so branches
-    // on them mispredict; this way the record is straight-line code.
     // A block boundary of level `l` runs between columns `c` and `c + 1` when the block size
-    // `2^(depth - l)` divides `c + 1`: the levels from `depth - tz(c + 1)` down are cut there.
+    // `2^(depth - l)` divides `c + 1`: the levels from `depth - tz(c + 1)` down are cut there,
+    // and two corners on either side share a node only at a level above that.
     let below = |v: u32| i32::from(depth) - v.trailing_zeros() as i32;
     let (kx, ky) = (below(c + 1), below(r + 1));
+    // Non-short-circuit `&` and `|` throughout: the levels vary from cell to cell, so branches
+    // on them mispredict; this way the record is straight-line code.
     let same = |la: u8, lb: u8, k: i32| (la == lb) & (i32::from(la) < k);
     let diagonal = same(lnw, lse, kx.min(ky));
     let a = !diagonal & !same(lnw, lsw, ky) & !same(lsw, lse, kx);

@@ -245,7 +245,7 @@ mod tests {
         let engine = VertexEngine::new(&store);
         let root = Cut::root(&store.geometry().shape);
         let mut s = Stream::new(&engine, &root, LodParams::default(), lens(), false, 1 << 20);
-        // From the root to a low camera's cut: thousands of evaluations, so not cheap.
+        // From the root to a low camera's cut: thousands of evaluations.
         let low = camera(1025, 1025, (0.5, 0.5, 0.0, 0.1, 0.2));
         s.update(&store, &low, usize::MAX);
         assert!(!s.is_cheap());
@@ -259,7 +259,7 @@ mod tests {
         let far = camera(1025, 1025, (0.05, 0.95, 0.0, 0.6, 0.2));
         s.update(&store, &far, usize::MAX);
         assert!(!s.is_cheap());
-        // The budgeted engine and tiles are unaffected: budgeted never, tiles always.
+        // A budgeted session never runs inline, however small its updates.
         let mut b = Stream::new(&engine, &root, LodParams::default(), lens(), true, 1 << 20);
         for _ in 0..=CHEAP_STREAK {
             b.update(&store, &low, 1 << 20);
