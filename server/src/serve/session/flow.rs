@@ -163,9 +163,10 @@ async fn compute(
     allowance: usize,
 ) -> Result<Produced, (CloseReason, String)> {
     if lod.is_cheap() {
-        // A tile update, or a vertex update of a session whose updates have been cheap: tens
-        // of microseconds, less than a trip to a blocking thread. A panic fails this session
-        // as it would on a blocking thread, not the worker's other tasks.
+        // A tile update, or a vertex update of a session whose recent updates were small
+        // (`LodStream::is_cheap`): tens of microseconds to a millisecond, where a trip to a
+        // blocking thread costs two thread switches. A panic fails this session as it would on
+        // a blocking thread, not the worker's other tasks.
         let started = Instant::now();
         let run = std::panic::AssertUnwindSafe(|| lod.update(&terrain.store, &camera, allowance));
         let produced = std::panic::catch_unwind(run)
