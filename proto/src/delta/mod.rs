@@ -42,6 +42,7 @@
 //! benchmark (issue 11, "Bytes").
 
 mod entropy;
+mod order;
 mod predict;
 
 pub use entropy::SplitEntropy;
@@ -132,10 +133,10 @@ pub fn predicted_code(details: [i32; 3], quantum: f32) -> u8 {
 
 impl Delta {
     /// Puts merges and splits in wire order: by level, then Morton code (parents before children).
-    /// Each node's key is computed once.
+    /// Each node's key is computed once, and sorted by a radix sort ([`order`]).
     pub fn canonicalize(&mut self) {
-        self.merges.sort_by_cached_key(|&n| wire_key(n));
-        self.splits.sort_by_cached_key(|s| wire_key(s.node));
+        order::sort_by_wire_key(&mut self.merges, |&n| n);
+        order::sort_by_wire_key(&mut self.splits, |s| s.node);
     }
 
     /// Whether the delta changes nothing.
