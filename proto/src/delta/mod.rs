@@ -133,7 +133,7 @@ pub fn predicted_code(details: [i32; 3], quantum: f32) -> u8 {
 
 impl Delta {
     /// Puts merges and splits in wire order: by level, then Morton code (parents before children).
-    /// Each node's key is computed once, and sorted by a radix sort ([`order`]).
+    /// Each node's key is computed once, and sorted by a radix sort (`delta/order.rs`).
     pub fn canonicalize(&mut self) {
         order::sort_by_wire_key(&mut self.merges, |&n| n);
         order::sort_by_wire_key(&mut self.splits, |s| s.node);
