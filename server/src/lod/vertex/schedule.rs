@@ -247,18 +247,23 @@ impl Bucket {
         }
     }
 
-    /// Moves the entries for which `due` holds into `out`, keeping the others in order.
+    /// Moves the entries for which `due` holds into `out`, keeping the others in order. Without
+    /// a branch on `due`, which a predictor guesses no better than a coin: each entry is
+    /// written to both places, and only one of them moves on.
     fn drain_due(&mut self, out: &mut Vec<u32>, pool: &mut Pool, due: impl Fn(u32) -> bool) {
-        let mut kept = 0;
+        let start = out.len();
+        out.resize(start + self.len, 0);
+        let (mut taken, mut kept) = (start, 0);
         for i in 0..self.len {
             let e = self.chunks[i / CHUNK][i % CHUNK];
-            if due(e) {
-                out.push(e);
-            } else {
-                self.chunks[kept / CHUNK][kept % CHUNK] = e;
-                kept += 1;
-            }
+            let d = due(e) as usize;
+            out[taken] = e;
+            taken += d;
+            // `kept <= i`: the entries not read yet are not overwritten.
+            self.chunks[kept / CHUNK][kept % CHUNK] = e;
+            kept += 1 - d;
         }
+        out.truncate(taken);
         self.len = kept;
         while self.chunks.len() > kept.div_ceil(CHUNK) {
             if let Some(c) = self.chunks.pop() {

@@ -57,6 +57,9 @@ pub struct VertexSession {
     schedule: Schedule,
     /// Due entries of the band being processed, reused across updates.
     due: Vec<u32>,
+    /// The last delta's numbers of merges and splits: the next delta's lists start with room
+    /// for as many (a list grown from empty is reallocated at every doubling).
+    last_sizes: (usize, usize),
     /// Interior nodes a child of which merged in the update under way (packed): they may not
     /// merge before the next update.
     blocked: FxHashSet<u32>,
@@ -84,6 +87,7 @@ impl VertexSession {
             cut: cut.tagged(shape),
             schedule: Schedule::new(shape.depth()),
             due: Vec::new(),
+            last_sizes: (0, 0),
             blocked: FxHashSet::default(),
             max_interior: usize::MAX,
             resumed: (cut.interior_count() > 0).then(|| cut.clone()),
@@ -149,6 +153,8 @@ impl VertexSession {
         self.schedule.advance(view);
         let mut delta = Delta {
             seq,
+            merges: Vec::with_capacity(self.last_sizes.0),
+            splits: Vec::with_capacity(self.last_sizes.1),
             ..Delta::default()
         };
         if !self.cut.is_interior(shape, NodeId::ROOT) {
@@ -204,6 +210,7 @@ impl VertexSession {
         }
         delta.canonicalize();
         delta.digest = self.cut.digest();
+        self.last_sizes = (delta.merges.len(), delta.splits.len());
         delta
     }
 
