@@ -249,21 +249,25 @@ impl Bucket {
 
     /// Moves the entries for which `due` holds into `out`, keeping the others in order. Without
     /// a branch on `due`, which a predictor guesses no better than a coin: each entry is
-    /// written to both places, and only one of them moves on.
+    /// written both to a small staging buffer and back into the bucket, and only one of the two
+    /// positions moves on (staging keeps `out` from growing by the entries kept).
     fn drain_due(&mut self, out: &mut Vec<u32>, pool: &mut Pool, due: impl Fn(u32) -> bool) {
-        let start = out.len();
-        out.resize(start + self.len, 0);
-        let (mut taken, mut kept) = (start, 0);
+        let mut staged = [0u32; CHUNK];
+        let (mut taken, mut kept) = (0, 0);
         for i in 0..self.len {
             let e = self.chunks[i / CHUNK][i % CHUNK];
             let d = due(e) as usize;
-            out[taken] = e;
+            staged[taken] = e;
             taken += d;
+            if taken == CHUNK {
+                out.extend_from_slice(&staged);
+                taken = 0;
+            }
             // `kept <= i`: the entries not read yet are not overwritten.
             self.chunks[kept / CHUNK][kept % CHUNK] = e;
             kept += 1 - d;
         }
-        out.truncate(taken);
+        out.extend_from_slice(&staged[..taken]);
         self.len = kept;
         while self.chunks.len() > kept.div_ceil(CHUNK) {
             if let Some(c) = self.chunks.pop() {
