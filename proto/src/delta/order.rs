@@ -12,18 +12,22 @@ use crate::tree::NodeId;
 
 /// Below this many items a comparison sort is cheaper than four histograms of 256 counts.
 const SMALL: usize = 48;
-/// The deepest level whose key fits in 32 bits: 4 bits of level, 28 of Morton code.
-const MAX_LEVEL: u8 = 14;
-
-/// A node's wire key in 32 bits, for levels up to [`MAX_LEVEL`]: same order as [`wire_key`].
+/// A node's wire key in 32 bits (4 bits of level, 28 of Morton code), same order as
+/// [`wire_key`], for a node that [`fits`].
 fn short_key(n: NodeId) -> u32 {
-    ((n.level as u64) << 28 | morton(n)) as u32
+    (n.level as u32) << 28 | morton(n) as u32
+}
+
+/// Whether `n`'s key fits in 32 bits: a level up to 14 and coordinates below `2^14` (true of
+/// every node of such a level).
+fn fits(n: NodeId) -> bool {
+    n.level <= 14 && (n.x | n.y) >> 14 == 0
 }
 
 /// Sorts `items` by the wire key of `node(item)`, stably.
 pub(super) fn sort_by_wire_key<T: Copy>(items: &mut Vec<T>, node: impl Fn(&T) -> NodeId) {
     let n = items.len();
-    if n <= SMALL || n > u32::MAX as usize || items.iter().any(|t| node(t).level > MAX_LEVEL) {
+    if n <= SMALL || n > u32::MAX as usize || !items.iter().all(|t| fits(node(t))) {
         items.sort_by_cached_key(|t| wire_key(node(t)));
         return;
     }
@@ -118,6 +122,18 @@ mod tests {
             assert!(wire_key(w[0]) < wire_key(w[1]));
             assert!(short_key(w[0]) < short_key(w[1]), "{:?} {:?}", w[0], w[1]);
         }
+        // Keys that do not fit send the items to the comparison sort.
+        assert!(fits(node(14, 16383, 16383)));
+        assert!(!fits(NodeId {
+            level: 15,
+            x: 0,
+            y: 0
+        }));
+        assert!(!fits(NodeId {
+            level: 3,
+            x: 1 << 14,
+            y: 0
+        }));
     }
 
     #[test]
