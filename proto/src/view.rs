@@ -18,6 +18,7 @@
 
 use crate::float::Extremum;
 use glam::Vec3;
+use wide::f32x4;
 
 /// A camera pose in world metres and radians.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -215,60 +216,92 @@ impl ViewState {
     }
 
     /// [`ViewState::box_view`] of the four boxes of a 2 x 2 quad (a node's children), lane by
-    /// lane with the same operations in the same order, so bit for bit the same results. Each
-    /// term is a four-lane array (lane `k` is the box in column `k & 1` and row `k >> 1`) and
-    /// each step one operation over the four lanes, which the compiler turns into vector
-    /// instructions: a plane's normal times the box corner it picks is three multiplications
-    /// and two additions for all four boxes.
+    /// lane with the same operations in the same order, so bit for bit the same results: each
+    /// term is one four-lane vector (lane `k` is the box in column `k & 1` and row `k >> 1`) and
+    /// each step one packed instruction ([`wide`]; plain arrays where the target has no vector
+    /// unit). A plane's normal times the box corner it picks is three multiplications and two
+    /// additions for all four boxes.
     #[inline]
     pub fn quad_views(&self, q: &QuadBoxes) -> [BoxView; 4] {
-        type Lanes = [f32; 4];
+        let l = self.quad_lanes(q);
+        let (margin, depth, r_max, d_max) = (
+            l.margin.to_array(),
+            l.depth.to_array(),
+            l.r_max.to_array(),
+            l.d_max.to_array(),
+        );
+        std::array::from_fn(|i| BoxView {
+            margin: margin[i],
+            depth: depth[i],
+            r_max: r_max[i],
+            d_max: d_max[i],
+        })
+    }
+
+    /// [`ViewState::quad_views`] and each box's [`ViewState::error_of`] for static errors `errs`,
+    /// the errors also four lanes at once (bit for bit the scalar ones).
+    #[inline]
+    pub fn quad_errors(&self, q: &QuadBoxes, errs: [f32; 4]) -> ([BoxView; 4], [f32; 4]) {
+        let l = self.quad_lanes(q);
+        let err = f32x4::from(errs);
+        // `error_of`: 0 when err <= 0 or the box is culled, else
+        // `focal err min(r_max / depth, off_axis) / depth` with the depth at least `near`.
+        let depth = f32x4::splat(self.near).fast_max(l.depth);
+        let ratio = f32x4::splat(self.off_axis).fast_min(l.r_max / depth);
+        let e = f32x4::splat(self.focal) * err * ratio / depth;
+        let zero = err.simd_le(f32x4::ZERO) | l.margin.simd_lt(f32x4::ZERO);
+        let e = zero.bitselect(f32x4::ZERO, e);
+        let (margin, depth, r_max, d_max) = (
+            l.margin.to_array(),
+            l.depth.to_array(),
+            l.r_max.to_array(),
+            l.d_max.to_array(),
+        );
+        let views = std::array::from_fn(|i| BoxView {
+            margin: margin[i],
+            depth: depth[i],
+            r_max: r_max[i],
+            d_max: d_max[i],
+        });
+        (views, e.to_array())
+    }
+
+    /// The four lanes of [`ViewState::quad_views`]. `a.fast_min(b)` is `a < b ? a : b` (the
+    /// packed `minps`), so the scalar `x.lesser(y)` (`y < x ? y : x`) is `y.fast_min(x)` and
+    /// `x.greater(y)` is `y.fast_max(x)`, NaN and signed zeros included.
+    #[inline]
+    fn quad_lanes(&self, q: &QuadBoxes) -> QuadLanes {
         let e = self.eye;
+        let lanes = |a: [f32; 4], o: f32| f32x4::from(a) - f32x4::splat(o);
         // Per lane, the box's low and high coordinates relative to the eye.
-        let x: [Lanes; 2] = [0, 1].map(|h| std::array::from_fn(|i| q.x[i & 1][h] - e.x));
-        let y: [Lanes; 2] = [0, 1].map(|h| std::array::from_fn(|i| q.y[i >> 1][h] - e.y));
-        let z: [Lanes; 2] = [0, 1].map(|h| std::array::from_fn(|i| q.z[i][h] - e.z));
+        let x = [0, 1].map(|h| lanes([q.x[0][h], q.x[1][h], q.x[0][h], q.x[1][h]], e.x));
+        let y = [0, 1].map(|h| lanes([q.y[0][h], q.y[0][h], q.y[1][h], q.y[1][h]], e.y));
+        let z = [0, 1].map(|h| lanes([q.z[0][h], q.z[1][h], q.z[2][h], q.z[3][h]], e.z));
         // `a x + b y + c z` lane by lane, as `Vec3::dot` computes it.
-        let dot = |n: Vec3, px: &Lanes, py: &Lanes, pz: &Lanes| -> Lanes {
-            let mut out = [0.0; 4];
-            for i in 0..4 {
-                out[i] = n.x * px[i] + n.y * py[i] + n.z * pz[i];
-            }
-            out
+        let dot = |n: Vec3, px: f32x4, py: f32x4, pz: f32x4| -> f32x4 {
+            f32x4::splat(n.x) * px + f32x4::splat(n.y) * py + f32x4::splat(n.z) * pz
         };
-        let mut margin: Lanes = [f32::INFINITY; 4];
+        let mut margin = f32x4::splat(f32::INFINITY);
         for (k, n) in self.planes.iter().enumerate() {
             let c = self.corners[k] as usize;
-            let d = dot(*n, &x[c & 1], &y[c >> 1 & 1], &z[c >> 2 & 1]);
+            let d = dot(*n, x[c & 1], y[c >> 1 & 1], z[c >> 2 & 1]);
             let offset = if k == 4 { self.near } else { 0.0 };
-            for i in 0..4 {
-                margin[i] = margin[i].lesser(d[i] - offset);
-            }
+            margin = (d - f32x4::splat(offset)).fast_min(margin);
         }
         // The nearest corner along the view axis: the minimum where forward is >= 0.
         let f = self.forward;
         let near = |fa: f32| usize::from(fa < 0.0);
-        let depth = dot(f, &x[near(f.x)], &y[near(f.y)], &z[near(f.z)]);
-        let far = |[lo, hi]: &[Lanes; 2]| -> Lanes {
-            let mut out = [0.0; 4];
-            for i in 0..4 {
-                out[i] = lo[i].abs().greater(hi[i].abs());
-            }
-            out
-        };
-        let (fx, fy, fz) = (far(&x), far(&y), far(&z));
-        let mut h: Lanes = [0.0; 4];
-        let mut d2: Lanes = [0.0; 4];
-        for i in 0..4 {
-            h[i] = fx[i] * fx[i] + fy[i] * fy[i];
-            d2[i] = h[i] + fz[i] * fz[i];
+        let depth = dot(f, x[near(f.x)], y[near(f.y)], z[near(f.z)]);
+        let far = |[lo, hi]: [f32x4; 2]| hi.abs().fast_max(lo.abs());
+        let (fx, fy, fz) = (far(x), far(y), far(z));
+        let h = fx * fx + fy * fy;
+        let d2 = h + fz * fz;
+        QuadLanes {
+            margin,
+            depth,
+            r_max: h.sqrt(),
+            d_max: d2.sqrt(),
         }
-        std::array::from_fn(|i| BoxView {
-            margin: margin[i],
-            depth: depth[i],
-            r_max: h[i].sqrt(),
-            d_max: d2[i].sqrt(),
-        })
     }
 
     /// Screen error from a box's view terms: see the module docs.
@@ -315,6 +348,14 @@ impl ViewState {
         let right = self.forward.cross(Vec3::Z).normalize_or(Vec3::X);
         [self.forward, right, right.cross(self.forward)]
     }
+}
+
+/// [`BoxView`]'s terms for the four boxes of a quad, one vector each.
+struct QuadLanes {
+    margin: f32x4,
+    depth: f32x4,
+    r_max: f32x4,
+    d_max: f32x4,
 }
 
 /// A box seen from a view: the terms of its screen error.
@@ -438,12 +479,17 @@ mod tests {
                 y: [range(300.0), range(300.0)],
                 z: [range(80.0), range(80.0), range(80.0), range(80.0)],
             };
-            for (k, got) in v.quad_views(&q).into_iter().enumerate() {
+            // Static errors of every sign, zero included.
+            let errs = [rnd() * 3.0, rnd() * 3.0, rnd().abs(), 0.0];
+            let (views, screen) = v.quad_errors(&q, errs);
+            assert_eq!(views, v.quad_views(&q));
+            for (k, got) in views.into_iter().enumerate() {
                 let one = v.box_view(&q.aabb(k));
                 assert_eq!(one.margin.to_bits(), got.margin.to_bits());
                 assert_eq!(one.depth.to_bits(), got.depth.to_bits());
                 assert_eq!(one.r_max.to_bits(), got.r_max.to_bits());
                 assert_eq!(one.d_max.to_bits(), got.d_max.to_bits());
+                assert_eq!(v.error_of(&one, errs[k]).to_bits(), screen[k].to_bits());
             }
         }
     }

@@ -70,6 +70,16 @@ pub struct UpdateStats {
     pub visited: u64,
 }
 
+/// What [`VertexEngine::children_views`] gives for the four children of a node, by child.
+pub struct ChildViews {
+    /// Where each box lies relative to the view.
+    pub views: [BoxView; 4],
+    /// Static errors, metres.
+    pub errs: [f32; 4],
+    /// Screen errors, pixels ([`ViewState::error_of`]).
+    pub screen: [f32; 4],
+}
+
 /// The engine over one store; cheap to create, shared by all sessions.
 ///
 /// Evaluations read the store's node records directly ([`crate::store::layout`]): one `u32` gives
@@ -130,11 +140,12 @@ impl<'s> VertexEngine<'s> {
         view.error_of(&bv, err)
     }
 
-    /// The view terms and static errors of `node`'s four children, from one quad of records.
-    /// The lanes of children that do not exist (on the grid's east and south borders) hold
-    /// whatever their record slots give: callers look only at the children that exist.
+    /// The view terms, static errors and screen errors of `node`'s four children, from one quad
+    /// of records, evaluated four lanes at once ([`ViewState::quad_errors`]). The lanes of
+    /// children that do not exist (on the grid's east and south borders) hold whatever their
+    /// record slots give: callers look only at the children that exist.
     #[inline]
-    pub fn children_views(&self, view: &ViewState, node: NodeId) -> ([BoxView; 4], [f32; 4]) {
+    pub fn children_views(&self, view: &ViewState, node: NodeId) -> ChildViews {
         let at = self.layout.children_slot(node);
         let quad = &self.nodes[at..at + 4];
         let err = |k: usize| self.errors[rec_code(quad[k]) as usize];
@@ -145,8 +156,13 @@ impl<'s> VertexEngine<'s> {
             rec_z(quad[2]),
             rec_z(quad[3]),
         ];
-        let views = view.quad_views(&self.geom.children_boxes_with(node, zq, errs));
-        (views, errs)
+        let (views, screen) =
+            view.quad_errors(&self.geom.children_boxes_with(node, zq, errs), errs);
+        ChildViews {
+            views,
+            errs,
+            screen,
+        }
     }
 
     /// Which of `node`'s children exist: bit `k` for child `k` (`node` is an inner node).
@@ -196,13 +212,13 @@ impl<'s> VertexEngine<'s> {
                 continue;
             }
             let exists = self.existing_children(n);
-            let (views, errs) = self.children_views(view, n);
-            for (k, (bv, err)) in views.iter().zip(&errs).enumerate() {
+            let screen = self.children_views(view, n).screen;
+            for (k, e) in screen.into_iter().enumerate() {
                 if exists >> k & 1 == 0 {
                     continue;
                 }
                 stats.visited += 1;
-                if view.error_of(bv, *err) > p.tau {
+                if e > p.tau {
                     let c = n.child(k);
                     cut.split_active(shape, c);
                     stack.push(c);

@@ -38,13 +38,14 @@
 //! of the wheels (no sort).
 
 use super::schedule::{Schedule, node_index};
-use super::{LodParams, UpdateStats, VertexEngine};
+use super::{ChildViews, LodParams, UpdateStats, VertexEngine};
 use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;
 use relief_proto::float::Extremum;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{BoxView, ViewState};
 use rustc_hash::FxHashSet;
+use wide::f64x4;
 
 /// Safety factor on every slack, against rounding in the bounds.
 const SLACK_SAFETY: f64 = 0.98;
@@ -255,46 +256,61 @@ impl VertexSession {
         let (k_split, k_merge) = (focal / p.tau as f64, focal / tau_m as f64);
         let mut bounds = Bounds::default();
         if checked != 0 {
-            let (views, errs) = engine.children_views(view, node);
-            for (k, (cv, cerr)) in views.iter().zip(&errs).enumerate() {
-                let c = node.child(k);
-                if active >> k & 1 != 0 {
-                    stats.visited += 1;
-                    if view.error_of(cv, *cerr) > p.tau && !self.at_limit() {
-                        self.cut.split_active(shape, c);
-                        delta.splits.push(engine.split_payload(c));
-                        // Its merge check joins this group, and its error is over tau.
-                        merge_slack(view, cv, *cerr, k_merge, &mut bounds);
-                        // Refine as deep as this pose needs, as the full pass does.
-                        self.process(engine, view, p, c, delta, stats);
-                    } else {
-                        split_slack(view, cv, *cerr, k_split, &mut bounds);
-                    }
-                } else if mergeable >> k & 1 != 0 {
-                    if !self.blocked.is_empty() && self.blocked.contains(&node_index(c)) {
+            let children = engine.children_views(view, node);
+            let over = lane_bits(children.screen, |e| e > p.tau);
+            let under = lane_bits(children.screen, |e| e < tau_m);
+            if !self.blocked.is_empty() {
+                for k in 0..4 {
+                    if mergeable >> k & 1 != 0 && self.blocked.contains(&node_index(node.child(k)))
+                    {
                         // A child of it merged in this update: its merge check waits for the
                         // next one.
+                        mergeable &= !(1 << k);
                         bounds.due_now();
-                        continue;
-                    }
-                    stats.visited += 1;
-                    if view.error_of(cv, *cerr) < tau_m {
-                        self.cut.merge_interior(shape, c);
-                        delta.merges.push(c);
-                        // Its split check joins this group, and its error is under tau. This
-                        // node may now merge, in its parent's group: at the next update. The
-                        // parent's entry stays live, since its other checks may be due in
-                        // this one.
-                        split_slack(view, cv, *cerr, k_split, &mut bounds);
-                        self.blocked.insert(node_index(node));
-                        if let Some(parent) = node.parent() {
-                            self.schedule.file_next(parent, self.cut.tag(parent));
-                        }
-                    } else {
-                        merge_slack(view, cv, *cerr, k_merge, &mut bounds);
                     }
                 }
             }
+            stats.visited += u64::from((active | mergeable).count_ones());
+            // Most groups change nothing: each lane keeps its check. A lane that splits or
+            // merges takes the other check instead, from the same evaluation, in child order
+            // (a split may meet the cap on interior nodes that an earlier merge lifted).
+            let mut split_checks = active & !over;
+            let mut merge_checks = mergeable & !under;
+            let mut changing = (active & over) | (mergeable & under);
+            while changing != 0 {
+                let k = changing.trailing_zeros() as usize;
+                changing &= changing - 1;
+                let c = node.child(k);
+                if active >> k & 1 != 0 {
+                    if self.at_limit() {
+                        split_checks |= 1 << k;
+                        continue;
+                    }
+                    self.cut.split_active(shape, c);
+                    delta.splits.push(engine.split_payload(c));
+                    // Its merge check joins this group, and its error is over tau.
+                    merge_checks |= 1 << k;
+                    // Refine as deep as this pose needs, as the full pass does.
+                    self.process(engine, view, p, c, delta, stats);
+                } else {
+                    self.cut.merge_interior(shape, c);
+                    delta.merges.push(c);
+                    // Its split check joins this group, and its error is under tau. This node
+                    // may now merge, in its parent's group: at the next update. The parent's
+                    // entry stays live, since its other checks may be due in this one.
+                    split_checks |= 1 << k;
+                    self.blocked.insert(node_index(node));
+                    if let Some(parent) = node.parent() {
+                        self.schedule.file_next(parent, self.cut.tag(parent));
+                    }
+                }
+            }
+            bounds.checks(
+                view,
+                &children,
+                (split_checks, merge_checks),
+                (k_split, k_merge),
+            );
         }
         let g = self.next_generation(node);
         if let Some((slack, lever)) = bounds.filing() {
@@ -351,30 +367,6 @@ impl Bounds {
         self.margin.0 = 0.0;
     }
 
-    /// A check that holds while the frustum margin of box `bv` moves less than `slack`.
-    fn margin(&mut self, slack: f64, bv: &BoxView) {
-        self.margin = (
-            self.margin.0.lesser(slack),
-            self.margin.1.greater(bv.d_max as f64),
-        );
-    }
-
-    /// A check that holds while the depth and reach of box `bv` move less than `slack`.
-    fn depth(&mut self, slack: f64, bv: &BoxView) {
-        let d = bv.d_max as f64;
-        // Every point of the box is at most `d_max` from the eye and at least `depth` along the
-        // axis (when that is not negative), so at most this far off it.
-        let z = bv.depth as f64;
-        let off_sq = if z > 0.0 {
-            (d * d - z * z).greater(0.0)
-        } else {
-            d * d
-        };
-        self.depth = self.depth.lesser(slack);
-        self.off_axis_sq = self.off_axis_sq.greater(off_sq);
-        self.along = self.along.greater(d);
-    }
-
     /// The slack to file the group with and the lever arm of its band: the group is due once
     /// `T + lever K` reaches `slack`, which comes no later than either bound can be reached.
     /// None when nothing can change.
@@ -410,53 +402,280 @@ impl Bounds {
     }
 }
 
-/// Bounds how far a box may move relative to the camera while a node with error `err` and screen
-/// error at most `tau` stays at most `tau`; `k` is `focal / tau`.
-fn split_slack(view: &ViewState, bv: &BoxView, err: f32, k: f64, bounds: &mut Bounds) {
-    if err <= 0.0 {
-        return;
-    }
-    if bv.margin < 0.0 {
-        // Culled: nothing can change until the box reaches the frustum.
-        bounds.margin(-bv.margin as f64, bv);
-        return;
-    }
-    let near = view.near() as f64;
-    let z = bv.depth as f64;
-    let r = bv.r_max as f64;
-    let a = k * err as f64;
-    // Branch e <= K err (r + d) / (z - d)^2: the smaller root of (z - d)^2 = a (r + d).
-    let c = z * z - a * r;
-    let s_a = if z > near && c >= 0.0 {
-        let b = 2.0 * z + a;
-        let disc = (b * b - 4.0 * c).greater(0.0);
-        (2.0 * c / (b + disc.sqrt())).lesser(z - near)
-    } else {
-        0.0
-    };
-    // Branch e <= K err c / (z - d). Leaving the frustum only lowers the error.
-    let s_c = z - (a * view.off_axis() as f64).greater(near);
-    bounds.depth(s_a.greater(s_c).greater(0.0), bv);
+/// Bit `k` set where `test` holds for lane `k`.
+#[inline]
+fn lane_bits(v: [f32; 4], test: impl Fn(f32) -> bool) -> u8 {
+    (0..4).fold(0, |m, k| m | u8::from(test(v[k])) << k)
 }
 
-/// Bounds how far a box may move relative to the camera while a node with error `err` and screen
-/// error at least `tau_m` stays at least `tau_m`; `k` is `focal / tau_m`.
-fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, k: f64, bounds: &mut Bounds) {
-    let near = view.near() as f64;
-    let z = (bv.depth as f64).greater(near);
-    let r = bv.r_max as f64;
-    let b = k * err as f64;
-    // Branch e >= K err (r - d) / (z + d)^2: the larger root of (z + d)^2 = b (r - d).
-    let c = z * z - b * r;
-    let s_a = if c <= 0.0 {
-        let bb = 2.0 * z + b;
-        -2.0 * c / (bb + (bb * bb - 4.0 * c).sqrt())
-    } else {
-        0.0
-    };
-    // Branch e >= K err c / (z + d).
-    let s_c = b * view.off_axis() as f64 - z;
-    // Leaving the frustum drops the error to 0.
-    bounds.margin((bv.margin as f64).greater(0.0), bv);
-    bounds.depth(s_a.lesser(s_c).greater(0.0), bv);
+/// Each lane's mask, all ones where bit `k` of the index is set.
+const LANE_MASKS: [[f64; 4]; 16] = {
+    let mut t = [[0.0; 4]; 16];
+    let mut m = 0;
+    while m < 16 {
+        let mut k = 0;
+        while k < 4 {
+            if m >> k & 1 != 0 {
+                t[m][k] = f64::from_bits(u64::MAX);
+            }
+            k += 1;
+        }
+        m += 1;
+    }
+    t
+};
+
+/// The mask of the lanes whose bits are set in `bits` (the low four).
+#[inline]
+fn lane_mask(bits: u8) -> f64x4 {
+    f64x4::new(LANE_MASKS[bits as usize & 15])
+}
+
+impl Bounds {
+    /// Adds a group's checks, all four lanes at once: a split check on the lanes of `checks.0`
+    /// and a merge check on those of `checks.1` (bit `k`: child `k`); `k` holds `focal / tau`
+    /// and `focal / tau_m`.
+    ///
+    /// A split check of a node with error `err` and screen error at most `tau` holds while
+    /// its box moves less than the slack (nothing while its error is 0, the frustum margin
+    /// while it is culled); a merge check, screen error at least `tau_m`, while it moves less
+    /// than either slack (leaving the frustum drops the error to 0). The branches of the screen
+    /// error (`e <= K err (r + d) / (z - d)^2` and `e <= K err c / (z - d)` for a split,
+    /// `e >= K err (r - d) / (z + d)^2` and `e >= K err c / (z + d)` for a merge) are both
+    /// computed on every lane and the checks' own kept by masks: each operation is one
+    /// packed instruction over the lanes ([`wide`]), and the lanes in the same order as the
+    /// scalar formulas (`lesser(a, b)` is `b.fast_min(a)`), so the slacks are bit for bit
+    /// theirs (tested against them).
+    #[inline]
+    fn checks(&mut self, view: &ViewState, c: &ChildViews, checks: (u8, u8), k: (f64, f64)) {
+        let lanes = |f: fn(&BoxView) -> f32| f64x4::new(c.views.each_ref().map(|v| f(v) as f64));
+        let (margin, z, r, d) = (
+            lanes(|v| v.margin),
+            lanes(|v| v.depth),
+            lanes(|v| v.r_max),
+            lanes(|v| v.d_max),
+        );
+        let err = f64x4::new(c.errs.map(f64::from));
+        let splat = f64x4::splat;
+        let (zero, two, four) = (f64x4::ZERO, splat(2.0), splat(4.0));
+        let near = splat(view.near() as f64);
+        let off = splat(view.off_axis() as f64);
+
+        // Split: the smaller root of (z - d)^2 = a (r + d) where z > near and the root is
+        // real, else 0; and z - max(a c, near).
+        let a = splat(k.0) * err;
+        let cs = z * z - a * r;
+        let b = two * z + a;
+        let disc = zero.fast_max(b * b - four * cs);
+        let root = (z - near).fast_min(two * cs / (b + disc.sqrt()));
+        let real = z.simd_gt(near) & cs.simd_ge(zero);
+        let s_a = real.bitselect(root, zero);
+        let s_c = z - near.fast_max(a * off);
+        let split = zero.fast_max(s_c.fast_max(s_a));
+
+        // Merge, with the depth at least `near`: the larger root of (z + d)^2 = b (r - d)
+        // where it is positive, else 0; and b c - z.
+        let zm = near.fast_max(z);
+        let b = splat(k.1) * err;
+        let cm = zm * zm - b * r;
+        let bb = two * zm + b;
+        let root = splat(-2.0) * cm / (bb + (bb * bb - four * cm).sqrt());
+        let s_a = cm.simd_le(zero).bitselect(root, zero);
+        let s_c = b * off - zm;
+        let merge = zero.fast_max(s_c.fast_min(s_a));
+
+        // Which lanes bound what.
+        let splits = lane_mask(checks.0) & err.simd_gt(zero);
+        let merges = lane_mask(checks.1);
+        let culled = margin.simd_lt(zero);
+        let inf = splat(f64::INFINITY);
+        let margin_on = (splits & culled) | merges;
+        let depth_on = (splits & !culled) | merges;
+        let margin_slack = merges.bitselect(zero.fast_max(margin), -margin);
+        let depth_slack = merges.bitselect(merge, split);
+        // Every point of a box is at most `d_max` from the eye and at least `depth` along the
+        // axis (when that is not negative), so at most this far off it.
+        let off_sq = z
+            .simd_gt(zero)
+            .bitselect(zero.fast_max(d * d - z * z), d * d);
+
+        let min = |on: f64x4, v: f64x4, acc: f64| -> f64 {
+            on.bitselect(v, inf)
+                .to_array()
+                .into_iter()
+                .fold(acc, |m, x| m.lesser(x))
+        };
+        let max = |on: f64x4, v: f64x4, acc: f64| -> f64 {
+            on.bitselect(v, zero)
+                .to_array()
+                .into_iter()
+                .fold(acc, |m, x| m.greater(x))
+        };
+        self.margin = (
+            min(margin_on, margin_slack, self.margin.0),
+            max(margin_on, d, self.margin.1),
+        );
+        self.depth = min(depth_on, depth_slack, self.depth);
+        self.off_axis_sq = max(depth_on, off_sq, self.off_axis_sq);
+        self.along = max(depth_on, d, self.along);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The four-lane checks against the scalar formulas they replaced (stop 37), kept here as
+    //! the reference.
+    use super::*;
+    use glam::Vec3;
+    use relief_proto::view::{Camera, Lens};
+
+    impl Bounds {
+        /// A check that holds while the frustum margin of box `bv` moves less than `slack`.
+        fn margin(&mut self, slack: f64, bv: &BoxView) {
+            self.margin = (
+                self.margin.0.lesser(slack),
+                self.margin.1.greater(bv.d_max as f64),
+            );
+        }
+
+        /// A check that holds while the depth and reach of box `bv` move less than `slack`.
+        fn depth(&mut self, slack: f64, bv: &BoxView) {
+            let d = bv.d_max as f64;
+            // Every point of the box is at most `d_max` from the eye and at least `depth` along the
+            // axis (when that is not negative), so at most this far off it.
+            let z = bv.depth as f64;
+            let off_sq = if z > 0.0 {
+                (d * d - z * z).greater(0.0)
+            } else {
+                d * d
+            };
+            self.depth = self.depth.lesser(slack);
+            self.off_axis_sq = self.off_axis_sq.greater(off_sq);
+            self.along = self.along.greater(d);
+        }
+    }
+
+    /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
+    /// error at most `tau` stays at most `tau`; `k` is `focal / tau`.
+    fn split_slack(view: &ViewState, bv: &BoxView, err: f32, k: f64, bounds: &mut Bounds) {
+        if err <= 0.0 {
+            return;
+        }
+        if bv.margin < 0.0 {
+            // Culled: nothing can change until the box reaches the frustum.
+            bounds.margin(-bv.margin as f64, bv);
+            return;
+        }
+        let near = view.near() as f64;
+        let z = bv.depth as f64;
+        let r = bv.r_max as f64;
+        let a = k * err as f64;
+        // Branch e <= K err (r + d) / (z - d)^2: the smaller root of (z - d)^2 = a (r + d).
+        let c = z * z - a * r;
+        let s_a = if z > near && c >= 0.0 {
+            let b = 2.0 * z + a;
+            let disc = (b * b - 4.0 * c).greater(0.0);
+            (2.0 * c / (b + disc.sqrt())).lesser(z - near)
+        } else {
+            0.0
+        };
+        // Branch e <= K err c / (z - d). Leaving the frustum only lowers the error.
+        let s_c = z - (a * view.off_axis() as f64).greater(near);
+        bounds.depth(s_a.greater(s_c).greater(0.0), bv);
+    }
+
+    /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
+    /// error at least `tau_m` stays at least `tau_m`; `k` is `focal / tau_m`.
+    fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, k: f64, bounds: &mut Bounds) {
+        let near = view.near() as f64;
+        let z = (bv.depth as f64).greater(near);
+        let r = bv.r_max as f64;
+        let b = k * err as f64;
+        // Branch e >= K err (r - d) / (z + d)^2: the larger root of (z + d)^2 = b (r - d).
+        let c = z * z - b * r;
+        let s_a = if c <= 0.0 {
+            let bb = 2.0 * z + b;
+            -2.0 * c / (bb + (bb * bb - 4.0 * c).sqrt())
+        } else {
+            0.0
+        };
+        // Branch e >= K err c / (z + d).
+        let s_c = b * view.off_axis() as f64 - z;
+        // Leaving the frustum drops the error to 0.
+        bounds.margin((bv.margin as f64).greater(0.0), bv);
+        bounds.depth(s_a.lesser(s_c).greater(0.0), bv);
+    }
+
+    /// Bit for bit the same bounds as the scalar checks, lane by lane in child order, over
+    /// random boxes (culled, behind the eye, nearer than `near`, zero errors) and every mix
+    /// of checks.
+    #[test]
+    fn four_lane_checks_are_the_scalar_ones() {
+        let mut seed = 0x5eed_u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+        };
+        for case in 0..20_000 {
+            let cam = Camera {
+                eye: Vec3::new(rnd() * 500.0, rnd() * 500.0, 100.0 + rnd() * 90.0),
+                yaw: rnd() * 3.2,
+                pitch: rnd() * 1.5,
+            };
+            let view = ViewState::new(&cam, &Lens::STANDARD);
+            let scale = [1.0, 30.0, 3000.0][case % 3];
+            let views: [BoxView; 4] = std::array::from_fn(|_| {
+                let d = rnd().abs() * scale * 2.0;
+                BoxView {
+                    margin: rnd() * scale,
+                    depth: rnd() * d,
+                    r_max: rnd().abs() * d,
+                    d_max: d,
+                }
+            });
+            let errs: [f32; 4] = std::array::from_fn(|k| {
+                if (case + k) % 7 == 0 {
+                    0.0
+                } else {
+                    rnd().abs() * scale * 0.05
+                }
+            });
+            let children = ChildViews {
+                views,
+                errs,
+                screen: [0.0; 4],
+            };
+            let splits = (rnd().abs() * 16.0) as u8 & 15;
+            let merges = (rnd().abs() * 16.0) as u8 & 15 & !splits;
+            let k = (
+                1000.0 + rnd().abs() as f64 * 2000.0,
+                1200.0 + rnd().abs() as f64 * 2000.0,
+            );
+            let mut lanes = Bounds::default();
+            let mut scalar = Bounds::default();
+            if case % 5 == 0 {
+                lanes.due_now();
+                scalar.due_now();
+            }
+            lanes.checks(&view, &children, (splits, merges), k);
+            for i in 0..4 {
+                if splits >> i & 1 != 0 {
+                    split_slack(&view, &views[i], errs[i], k.0, &mut scalar);
+                } else if merges >> i & 1 != 0 {
+                    merge_slack(&view, &views[i], errs[i], k.1, &mut scalar);
+                }
+            }
+            let bits = |b: &Bounds| {
+                [b.margin.0, b.margin.1, b.depth, b.off_axis_sq, b.along].map(f64::to_bits)
+            };
+            assert_eq!(
+                bits(&lanes),
+                bits(&scalar),
+                "case {case}: {lanes:?} {scalar:?}"
+            );
+            assert_eq!(lanes.filing(), scalar.filing());
+        }
+    }
 }
