@@ -157,6 +157,22 @@ impl TreeShape {
         self.offsets[level as usize]
     }
 
+    /// The dense indices of an inner node's four nominal children (in child order) and which
+    /// of them exist (bit `k` for child `k`; child 0 always does), computed for all four
+    /// without a branch per child.
+    #[inline]
+    pub fn children_indices(&self, node: NodeId) -> ([u64; 4], u8) {
+        debug_assert!(node.level < self.depth);
+        let level = node.level as usize + 1;
+        let (w, h) = self.dims[level];
+        let (x, y) = (2 * node.x, 2 * node.y);
+        let (east, south) = (x + 1 < w, y + 1 < h);
+        let exists = 1 | u8::from(east) << 1 | u8::from(south) << 2 | u8::from(east & south) << 3;
+        let north = self.offsets[level] + y as u64 * w as u64 + x as u64;
+        let south_row = north + w as u64;
+        ([north, north + 1, south_row, south_row + 1], exists)
+    }
+
     /// Whether `node` exists in this tree.
     pub fn contains(&self, node: NodeId) -> bool {
         node.level <= self.depth && {
@@ -266,6 +282,26 @@ mod tests {
         assert_eq!(t.depth(), 2);
         assert_eq!(t.node_count(), 1 + 4 + 16);
         assert_eq!(t.grid_pos(NodeId::ROOT), (1.5, 1.5));
+    }
+
+    #[test]
+    fn children_indices_are_the_existing_children() {
+        for (w, h) in [(5, 3), (4, 4), (17, 9), (2, 33), (65, 40)] {
+            let t = TreeShape::new(w, h).unwrap();
+            for level in 0..t.depth() {
+                let (lw, lh) = t.level_dims(level);
+                for (x, y) in (0..lh).flat_map(|y| (0..lw).map(move |x| (x, y))) {
+                    let node = NodeId { level, x, y };
+                    let (indices, exists) = t.children_indices(node);
+                    let mut mask = 0;
+                    for (k, c) in t.children(node) {
+                        mask |= 1 << k;
+                        assert_eq!(indices[k], t.index(c), "{node:?} child {k}");
+                    }
+                    assert_eq!(exists, mask, "{node:?}");
+                }
+            }
+        }
     }
 
     #[test]

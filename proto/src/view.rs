@@ -222,26 +222,14 @@ impl ViewState {
     /// unit). A plane's normal times the box corner it picks is three multiplications and two
     /// additions for all four boxes.
     #[inline]
-    pub fn quad_views(&self, q: &QuadBoxes) -> [BoxView; 4] {
-        let l = self.quad_lanes(q);
-        let (margin, depth, r_max, d_max) = (
-            l.margin.to_array(),
-            l.depth.to_array(),
-            l.r_max.to_array(),
-            l.d_max.to_array(),
-        );
-        std::array::from_fn(|i| BoxView {
-            margin: margin[i],
-            depth: depth[i],
-            r_max: r_max[i],
-            d_max: d_max[i],
-        })
+    pub fn quad_views(&self, q: &QuadBoxes) -> QuadViews {
+        self.quad_lanes(q).to_arrays()
     }
 
     /// [`ViewState::quad_views`] and each box's [`ViewState::error_of`] for static errors `errs`,
     /// the errors also four lanes at once (bit for bit the scalar ones).
     #[inline]
-    pub fn quad_errors(&self, q: &QuadBoxes, errs: [f32; 4]) -> ([BoxView; 4], [f32; 4]) {
+    pub fn quad_errors(&self, q: &QuadBoxes, errs: [f32; 4]) -> (QuadViews, [f32; 4]) {
         let l = self.quad_lanes(q);
         let err = f32x4::from(errs);
         // `error_of`: 0 when err <= 0 or the box is culled, else
@@ -250,20 +238,7 @@ impl ViewState {
         let ratio = f32x4::splat(self.off_axis).fast_min(l.r_max / depth);
         let e = f32x4::splat(self.focal) * err * ratio / depth;
         let zero = err.simd_le(f32x4::ZERO) | l.margin.simd_lt(f32x4::ZERO);
-        let e = zero.bitselect(f32x4::ZERO, e);
-        let (margin, depth, r_max, d_max) = (
-            l.margin.to_array(),
-            l.depth.to_array(),
-            l.r_max.to_array(),
-            l.d_max.to_array(),
-        );
-        let views = std::array::from_fn(|i| BoxView {
-            margin: margin[i],
-            depth: depth[i],
-            r_max: r_max[i],
-            d_max: d_max[i],
-        });
-        (views, e.to_array())
+        (l.to_arrays(), zero.bitselect(f32x4::ZERO, e).to_array())
     }
 
     /// The four lanes of [`ViewState::quad_views`]. `a.fast_min(b)` is `a < b ? a : b` (the
@@ -356,6 +331,54 @@ struct QuadLanes {
     depth: f32x4,
     r_max: f32x4,
     d_max: f32x4,
+}
+
+impl QuadLanes {
+    fn to_arrays(&self) -> QuadViews {
+        QuadViews {
+            margin: self.margin.to_array(),
+            depth: self.depth.to_array(),
+            r_max: self.r_max.to_array(),
+            d_max: self.d_max.to_array(),
+        }
+    }
+}
+
+/// [`BoxView`]'s terms for the four boxes of a quad (a node's children), term by term: lane `k`
+/// of each is box `k`'s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct QuadViews {
+    /// [`BoxView::margin`] by lane.
+    pub margin: [f32; 4],
+    /// [`BoxView::depth`] by lane.
+    pub depth: [f32; 4],
+    /// [`BoxView::r_max`] by lane.
+    pub r_max: [f32; 4],
+    /// [`BoxView::d_max`] by lane.
+    pub d_max: [f32; 4],
+}
+
+impl QuadViews {
+    /// Box `k`'s terms.
+    pub fn lane(&self, k: usize) -> BoxView {
+        BoxView {
+            margin: self.margin[k],
+            depth: self.depth[k],
+            r_max: self.r_max[k],
+            d_max: self.d_max[k],
+        }
+    }
+}
+
+impl From<[BoxView; 4]> for QuadViews {
+    fn from(v: [BoxView; 4]) -> QuadViews {
+        QuadViews {
+            margin: v.map(|b| b.margin),
+            depth: v.map(|b| b.depth),
+            r_max: v.map(|b| b.r_max),
+            d_max: v.map(|b| b.d_max),
+        }
+    }
 }
 
 /// A box seen from a view: the terms of its screen error.
@@ -483,7 +506,8 @@ mod tests {
             let errs = [rnd() * 3.0, rnd() * 3.0, rnd().abs(), 0.0];
             let (views, screen) = v.quad_errors(&q, errs);
             assert_eq!(views, v.quad_views(&q));
-            for (k, got) in views.into_iter().enumerate() {
+            for k in 0..4 {
+                let got = views.lane(k);
                 let one = v.box_view(&q.aabb(k));
                 assert_eq!(one.margin.to_bits(), got.margin.to_bits());
                 assert_eq!(one.depth.to_bits(), got.depth.to_bits());

@@ -40,7 +40,7 @@ use relief_proto::delta::{Delta, Parents, Split};
 use relief_proto::haar::{self, Presence, error_value};
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
-use relief_proto::view::{BoxView, ViewState};
+use relief_proto::view::{BoxView, QuadViews, ViewState};
 
 /// Thresholds of the cut, in pixels.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -73,7 +73,7 @@ pub struct UpdateStats {
 /// What [`VertexEngine::children_views`] gives for the four children of a node, by child.
 pub struct ChildViews {
     /// Where each box lies relative to the view.
-    pub views: [BoxView; 4],
+    pub views: QuadViews,
     /// Static errors, metres.
     pub errs: [f32; 4],
     /// Screen errors, pixels ([`ViewState::error_of`]).

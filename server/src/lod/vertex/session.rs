@@ -43,7 +43,7 @@ use relief_proto::cut::Cut;
 use relief_proto::delta::Delta;
 use relief_proto::float::Extremum;
 use relief_proto::tree::NodeId;
-use relief_proto::view::{BoxView, ViewState};
+use relief_proto::view::ViewState;
 use rustc_hash::FxHashSet;
 use wide::f64x4;
 
@@ -241,12 +241,12 @@ impl VertexSession {
         // grandchildren are leaves, never interior, so there is nothing to read.
         let mut mergeable = interior;
         if interior != 0 && node.level + 2 < shape.depth() {
+            // Nibble `k` of the grandchildren's bits is child `k`'s children: bit `k` of
+            // `busy` says any of them is interior (no branch per child).
             let grand = self.cut.interior_grandchildren(node);
-            for k in 0..4 {
-                if grand >> (4 * k) & 15 != 0 {
-                    mergeable &= !(1 << k);
-                }
-            }
+            let any = (grand | grand >> 1 | grand >> 2 | grand >> 3) & 0x1111;
+            let busy = (any | any >> 3 | any >> 6 | any >> 9) as u8 & 15;
+            mergeable &= !busy;
         }
         let checked = active | mergeable;
         let tau_m = p.tau * p.merge_ratio;
@@ -259,24 +259,26 @@ impl VertexSession {
             let children = engine.children_views(view, node);
             let over = lane_bits(children.screen, |e| e > p.tau);
             let under = lane_bits(children.screen, |e| e < tau_m);
-            if !self.blocked.is_empty() {
+            stats.visited += u64::from((active | mergeable).count_ones());
+            // A child of which a child merged in this update may not merge before the next
+            // one: its merge check waits for it. Only a child whose error is under the merge
+            // threshold is looked up; the others keep their merge check and its slack, which
+            // bounds when they can merge whether or not they are blocked.
+            let mut merging = mergeable & under;
+            if merging != 0 && !self.blocked.is_empty() {
                 for k in 0..4 {
-                    if mergeable >> k & 1 != 0 && self.blocked.contains(&node_index(node.child(k)))
-                    {
-                        // A child of it merged in this update: its merge check waits for the
-                        // next one.
-                        mergeable &= !(1 << k);
+                    if merging >> k & 1 != 0 && self.blocked.contains(&node_index(node.child(k))) {
+                        merging &= !(1 << k);
                         bounds.due_now();
                     }
                 }
             }
-            stats.visited += u64::from((active | mergeable).count_ones());
             // Most groups change nothing: each lane keeps its check. A lane that splits or
             // merges takes the other check instead, from the same evaluation, in child order
             // (a split may meet the cap on interior nodes that an earlier merge lifted).
             let mut split_checks = active & !over;
             let mut merge_checks = mergeable & !under;
-            let mut changing = (active & over) | (mergeable & under);
+            let mut changing = (active & over) | merging;
             while changing != 0 {
                 let k = changing.trailing_zeros() as usize;
                 changing &= changing - 1;
@@ -385,19 +387,17 @@ impl Bounds {
         if slack == 0.0 {
             return Some((0.0, m_reach.greater(self.along)));
         }
-        let mut lever: f64 = 0.0;
-        if m.is_finite() {
-            lever = lever.greater(m_reach * slack / m);
-        }
-        if s.is_finite() {
-            // lever^2 - (off_axis slack / s) lever - along slack^2 / (2 s) = 0, larger root.
-            let ratio = slack / s;
-            let (p, q) = (
-                self.off_axis_sq.sqrt() * ratio,
-                self.along * slack * ratio / 2.0,
-            );
-            lever = lever.greater((p + (p * p + 4.0 * q).sqrt()) / 2.0);
-        }
+        // Without a branch on which bounds exist: an infinite slack (no check of that kind)
+        // makes its term 0 (`x / inf`), and the lever is at least 0.
+        let margin_lever = m_reach * slack / m;
+        // lever^2 - (off_axis slack / s) lever - along slack^2 / (2 s) = 0, larger root.
+        let ratio = slack / s;
+        let (p, q) = (
+            self.off_axis_sq.sqrt() * ratio,
+            self.along * slack * ratio / 2.0,
+        );
+        let depth_lever = (p + (p * p + 4.0 * q).sqrt()) / 2.0;
+        let lever = 0.0.greater(margin_lever).greater(depth_lever);
         Some((slack, lever))
     }
 }
@@ -448,12 +448,12 @@ impl Bounds {
     /// theirs (tested against them).
     #[inline]
     fn checks(&mut self, view: &ViewState, c: &ChildViews, checks: (u8, u8), k: (f64, f64)) {
-        let lanes = |f: fn(&BoxView) -> f32| f64x4::new(c.views.each_ref().map(|v| f(v) as f64));
+        let lanes = |v: [f32; 4]| f64x4::new(v.map(f64::from));
         let (margin, z, r, d) = (
-            lanes(|v| v.margin),
-            lanes(|v| v.depth),
-            lanes(|v| v.r_max),
-            lanes(|v| v.d_max),
+            lanes(c.views.margin),
+            lanes(c.views.depth),
+            lanes(c.views.r_max),
+            lanes(c.views.d_max),
         );
         let err = f64x4::new(c.errs.map(f64::from));
         let splat = f64x4::splat;
@@ -462,27 +462,35 @@ impl Bounds {
         let off = splat(view.off_axis() as f64);
 
         // Split: the smaller root of (z - d)^2 = a (r + d) where z > near and the root is
-        // real, else 0; and z - max(a c, near).
-        let a = splat(k.0) * err;
-        let cs = z * z - a * r;
-        let b = two * z + a;
-        let disc = zero.fast_max(b * b - four * cs);
-        let root = (z - near).fast_min(two * cs / (b + disc.sqrt()));
-        let real = z.simd_gt(near) & cs.simd_ge(zero);
-        let s_a = real.bitselect(root, zero);
-        let s_c = z - near.fast_max(a * off);
-        let split = zero.fast_max(s_c.fast_max(s_a));
+        // real, else 0; and z - max(a c, near). Skipped for a group without split checks.
+        let split = if checks.0 == 0 {
+            zero
+        } else {
+            let a = splat(k.0) * err;
+            let cs = z * z - a * r;
+            let b = two * z + a;
+            let disc = zero.fast_max(b * b - four * cs);
+            let root = (z - near).fast_min(two * cs / (b + disc.sqrt()));
+            let real = z.simd_gt(near) & cs.simd_ge(zero);
+            let s_a = real.bitselect(root, zero);
+            let s_c = z - near.fast_max(a * off);
+            zero.fast_max(s_c.fast_max(s_a))
+        };
 
         // Merge, with the depth at least `near`: the larger root of (z + d)^2 = b (r - d)
-        // where it is positive, else 0; and b c - z.
-        let zm = near.fast_max(z);
-        let b = splat(k.1) * err;
-        let cm = zm * zm - b * r;
-        let bb = two * zm + b;
-        let root = splat(-2.0) * cm / (bb + (bb * bb - four * cm).sqrt());
-        let s_a = cm.simd_le(zero).bitselect(root, zero);
-        let s_c = b * off - zm;
-        let merge = zero.fast_max(s_c.fast_min(s_a));
+        // where it is positive, else 0; and b c - z. Skipped for a group without merge checks.
+        let merge = if checks.1 == 0 {
+            zero
+        } else {
+            let zm = near.fast_max(z);
+            let b = splat(k.1) * err;
+            let cm = zm * zm - b * r;
+            let bb = two * zm + b;
+            let root = splat(-2.0) * cm / (bb + (bb * bb - four * cm).sqrt());
+            let s_a = cm.simd_le(zero).bitselect(root, zero);
+            let s_c = b * off - zm;
+            zero.fast_max(s_c.fast_min(s_a))
+        };
 
         // Which lanes bound what.
         let splits = lane_mask(checks.0) & err.simd_gt(zero);
@@ -527,7 +535,7 @@ mod tests {
     //! the reference.
     use super::*;
     use glam::Vec3;
-    use relief_proto::view::{Camera, Lens};
+    use relief_proto::view::{BoxView, Camera, Lens};
 
     impl Bounds {
         /// A check that holds while the frustum margin of box `bv` moves less than `slack`.
@@ -643,7 +651,7 @@ mod tests {
                 }
             });
             let children = ChildViews {
-                views,
+                views: views.into(),
                 errs,
                 screen: [0.0; 4],
             };
