@@ -206,11 +206,8 @@ impl Cut {
         if !shape.contains(node) {
             return Err(CutError::UnknownNode(node));
         }
-        if !self.is_interior(shape, node)
-            || shape
-                .children(node)
-                .any(|(_, c)| self.is_interior(shape, c))
-        {
+        // Children that do not exist are never interior: one read of the children's bits.
+        if !self.is_interior(shape, node) || self.interior_children(node) != 0 {
             return Err(CutError::NotMergeable(node));
         }
         self.merge_interior(shape, node);
