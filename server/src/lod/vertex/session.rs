@@ -442,10 +442,10 @@ impl Bounds {
     /// than either slack (leaving the frustum drops the error to 0). The branches of the screen
     /// error (`e <= K err (r + d) / (z - d)^2` and `e <= K err c / (z - d)` for a split,
     /// `e >= K err (r - d) / (z + d)^2` and `e >= K err c / (z + d)` for a merge) are both
-    /// computed on every lane and the checks' own kept by masks: each operation is one
-    /// packed instruction over the lanes ([`wide`]), and the lanes in the same order as the
-    /// scalar formulas (`lesser(a, b)` is `b.fast_min(a)`), so the slacks are bit for bit
-    /// theirs (tested against them).
+    /// computed on every lane and the checks' own kept by masks: each operation is one vector
+    /// operation over the lanes ([`wide`]; two packed instructions of `f64` pairs on baseline
+    /// x86-64, one with AVX), the lanes in the same order as the scalar formulas (`x.lesser(y)`
+    /// is `y.fast_min(x)`), so the slacks are bit for bit theirs (tested against them).
     #[inline]
     fn checks(&mut self, view: &ViewState, c: &ChildViews, checks: (u8, u8), k: (f64, f64)) {
         let lanes = |v: [f32; 4]| f64x4::new(v.map(f64::from));
