@@ -254,21 +254,29 @@ impl Delta {
             let node = next_merge(shape, &mut r, models, known.cut, &mut prev)?;
             delta.merges.push(node);
         }
+        // The splits' nodes and their wire keys (level and Morton code, as decoded).
         let mut nodes = Vec::with_capacity(reserve(n_splits, body.len()));
         let mut prev = None;
         for _ in 0..n_splits {
-            nodes.push(next_node(
+            let node = next_node(
                 shape,
                 &mut r,
                 &mut models.split_step,
                 &mut models.split_pos,
                 &mut prev,
-            )?);
+            )?;
+            let key = prev.map_or(0, |(l, m)| (l as u64) << KEY_LEVEL_SHIFT | m);
+            nodes.push((node, key));
         }
         let mut predictor = Predictor::new(known.parents);
-        for (i, &node) in nodes.iter().enumerate() {
-            let predicted =
-                predictor.predict(shape, i, node, |k| nodes[k], |k| delta.splits[k].details);
+        for (i, &(node, key)) in nodes.iter().enumerate() {
+            let predicted = predictor.predict(
+                shape,
+                i,
+                (node, key),
+                |k| nodes[k].1,
+                |k| delta.splits[k].details,
+            );
             let mut details = [0i32; 3];
             for ((d, p), model) in details
                 .iter_mut()
@@ -362,8 +370,11 @@ fn reserve(n: u64, body_bytes: usize) -> usize {
 /// A node's place in wire order as one integer: its level, then its Morton code within the level
 /// (codes take at most 30 bits).
 pub fn wire_key(n: NodeId) -> u64 {
-    (n.level as u64) << 58 | morton(n)
+    (n.level as u64) << KEY_LEVEL_SHIFT | morton(n)
 }
+
+/// Where a wire key's level starts: below it, the Morton code.
+pub(crate) const KEY_LEVEL_SHIFT: u32 = 58;
 
 /// The Morton (Z-order) code of a node within its level: x and y bits interleaved.
 pub(crate) fn morton(n: NodeId) -> u64 {

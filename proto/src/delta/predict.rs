@@ -22,7 +22,7 @@ use crate::bits::zigzag;
 use crate::haar::{Presence, Quad, forward};
 use crate::tree::{NodeId, TreeShape};
 
-use super::{Split, wire_key};
+use super::{KEY_LEVEL_SHIFT, Split, wire_key};
 
 /// Where a body's coder finds the details of a split's parent that did not split in the same
 /// body: the client's mirror, the server's store.
@@ -58,6 +58,11 @@ fn presence(shape: &TreeShape, node: NodeId) -> Presence {
     }
 }
 
+/// The wire key of the parent of the node whose wire key is `key` (not of level 0).
+fn parent_key(key: u64) -> u64 {
+    ((key >> KEY_LEVEL_SHIFT) - 1) << KEY_LEVEL_SHIFT | (key & ((1 << KEY_LEVEL_SHIFT) - 1)) >> 2
+}
+
 /// Predicts the splits of one body in order ([`Predictor::predict`]: `node_at(k)` is the body's
 /// `k`-th split and `details_at(k)`, for `k` before the one predicted, its details).
 pub(super) struct Predictor<'p> {
@@ -72,25 +77,28 @@ impl<'p> Predictor<'p> {
         Predictor { parents, cursor: 0 }
     }
 
-    /// The prediction for `node`, the body's `i`-th split. Splits are met in the body's order
+    /// The prediction for `node`, the body's `i`-th split, whose wire key is `key`
+    /// ([`wire_key`]; `key_at(k)` is the `k`-th split's). Splits are met in the body's order
     /// (level, then Morton code), so their parents' keys never decrease and one cursor finds
-    /// every parent that split earlier in the body.
+    /// every parent that split earlier in the body. A parent's key is its child's, a level up
+    /// and the Morton code shifted by two bits, so no key is computed here.
     pub(super) fn predict(
         &mut self,
         shape: &TreeShape,
         i: usize,
-        node: NodeId,
-        mut node_at: impl FnMut(usize) -> NodeId,
+        (node, key): (NodeId, u64),
+        mut key_at: impl FnMut(usize) -> u64,
         details_at: impl FnOnce(usize) -> [i32; 3],
     ) -> [i32; 3] {
         let Some(parent) = node.parent() else {
             return [0; 3];
         };
-        let key = wire_key(parent);
-        while self.cursor < i && wire_key(node_at(self.cursor)) < key {
+        let parent_key = parent_key(key);
+        debug_assert_eq!(parent_key, wire_key(parent));
+        while self.cursor < i && key_at(self.cursor) < parent_key {
             self.cursor += 1;
         }
-        let pd = if self.cursor < i && node_at(self.cursor) == parent {
+        let pd = if self.cursor < i && key_at(self.cursor) == parent_key {
             details_at(self.cursor)
         } else {
             match self.parents.details(parent) {
@@ -115,14 +123,9 @@ impl<'p> Predictor<'p> {
         splits: &[(u8, u64, &Split)],
         i: usize,
     ) -> [u64; 3] {
+        let key = |k: usize| (splits[k].0 as u64) << KEY_LEVEL_SHIFT | splits[k].1;
         let s = splits[i].2;
-        let p = self.predict(
-            shape,
-            i,
-            s.node,
-            |k| splits[k].2.node,
-            |k| splits[k].2.details,
-        );
+        let p = self.predict(shape, i, (s.node, key(i)), key, |k| splits[k].2.details);
         std::array::from_fn(|c| zigzag(i64::from(s.details[c].wrapping_sub(p[c]))))
     }
 }
