@@ -182,7 +182,7 @@ impl Encoder {
     }
 
     /// Codes `v` (at most [`MAX_VALUE`]) with the adaptive model `model`.
-    #[inline(always)]
+    #[inline]
     pub fn value(&mut self, model: &mut Value, v: u64) {
         debug_assert!(v <= MAX_VALUE);
         let b = 63 - (v + 1).leading_zeros();
@@ -299,7 +299,7 @@ impl<'a> Decoder<'a> {
 
     /// Decodes a value coded with the adaptive model `model`; `None` if its bucket is beyond
     /// [`MAX_BUCKET`] or its direct bits are impossible.
-    #[inline(always)]
+    #[inline]
     pub fn value(&mut self, model: &mut Value) -> Option<u64> {
         let mut b = 0;
         loop {
