@@ -63,8 +63,8 @@ fn parent_key(key: u64) -> u64 {
     ((key >> KEY_LEVEL_SHIFT) - 1) << KEY_LEVEL_SHIFT | (key & ((1 << KEY_LEVEL_SHIFT) - 1)) >> 2
 }
 
-/// Predicts the splits of one body in order ([`Predictor::predict`]: `node_at(k)` is the body's
-/// `k`-th split and `details_at(k)`, for `k` before the one predicted, its details).
+/// Predicts the splits of one body in order ([`Predictor::predict`]: `key_at(k)` is the wire key
+/// of the body's `k`-th split and `details_at(k)`, for `k` before the one predicted, its details).
 pub(super) struct Predictor<'p> {
     /// The source for parents outside the body.
     parents: &'p dyn Parents,
