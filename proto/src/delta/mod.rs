@@ -254,19 +254,17 @@ impl Delta {
             let node = next_merge(shape, &mut r, models, known.cut, &mut prev)?;
             delta.merges.push(node);
         }
-        // The splits' nodes and their wire keys (level and Morton code, as decoded).
+        // The splits' nodes and their wire keys (as decoded: no Morton code computed).
         let mut nodes = Vec::with_capacity(reserve(n_splits, body.len()));
         let mut prev = None;
         for _ in 0..n_splits {
-            let node = next_node(
+            nodes.push(next_node(
                 shape,
                 &mut r,
                 &mut models.split_step,
                 &mut models.split_pos,
                 &mut prev,
-            )?;
-            let key = prev.map_or(0, |(l, m)| (l as u64) << KEY_LEVEL_SHIFT | m);
-            nodes.push((node, key));
+            )?);
         }
         let mut predictor = Predictor::new(known.parents);
         for (i, &(node, key)) in nodes.iter().enumerate() {
@@ -370,11 +368,16 @@ fn reserve(n: u64, body_bytes: usize) -> usize {
 /// A node's place in wire order as one integer: its level, then its Morton code within the level
 /// (codes take at most 30 bits).
 pub fn wire_key(n: NodeId) -> u64 {
-    (n.level as u64) << KEY_LEVEL_SHIFT | morton(n)
+    key_of(n.level, morton(n))
 }
 
 /// Where a wire key's level starts: below it, the Morton code.
 pub(crate) const KEY_LEVEL_SHIFT: u32 = 58;
+
+/// The wire key of the node of `level` whose Morton code is `code`.
+pub(crate) fn key_of(level: u8, code: u64) -> u64 {
+    (level as u64) << KEY_LEVEL_SHIFT | code
+}
 
 /// The Morton (Z-order) code of a node within its level: x and y bits interleaved.
 pub(crate) fn morton(n: NodeId) -> u64 {
@@ -500,7 +503,7 @@ fn next_node(
     step_model: &mut Value,
     pos_model: &mut Value,
     prev: &mut Option<(u8, u64)>,
-) -> Result<NodeId, BodyError> {
+) -> Result<(NodeId, u64), BodyError> {
     let step = r.value(step_model).ok_or(BodyError::Malformed)?;
     let v = r.value(pos_model).ok_or(BodyError::Malformed)?;
     if r.overrun() {
@@ -529,7 +532,7 @@ fn next_node(
         return Err(BodyError::LeafNode(node));
     }
     *prev = Some((node.level, code));
-    Ok(node)
+    Ok((node, key_of(node.level, code)))
 }
 
 #[cfg(test)]

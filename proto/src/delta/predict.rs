@@ -22,7 +22,7 @@ use crate::bits::zigzag;
 use crate::haar::{Presence, Quad, forward};
 use crate::tree::{NodeId, TreeShape};
 
-use super::{KEY_LEVEL_SHIFT, Split, wire_key};
+use super::{KEY_LEVEL_SHIFT, Split, key_of, wire_key};
 
 /// Where a body's coder finds the details of a split's parent that did not split in the same
 /// body: the client's mirror, the server's store.
@@ -123,7 +123,7 @@ impl<'p> Predictor<'p> {
         splits: &[(u8, u64, &Split)],
         i: usize,
     ) -> [u64; 3] {
-        let key = |k: usize| (splits[k].0 as u64) << KEY_LEVEL_SHIFT | splits[k].1;
+        let key = |k: usize| key_of(splits[k].0, splits[k].1);
         let s = splits[i].2;
         let p = self.predict(shape, i, (s.node, key(i)), key, |k| splits[k].2.details);
         std::array::from_fn(|c| zigzag(i64::from(s.details[c].wrapping_sub(p[c]))))

@@ -118,7 +118,7 @@ mod tests {
     use proptest::prelude::*;
 
     fn morton(n: NodeId) -> u64 {
-        crate::delta::wire_key(n) & ((1 << 58) - 1)
+        crate::delta::wire_key(n) & ((1 << crate::delta::KEY_LEVEL_SHIFT) - 1)
     }
 
     proptest! {
