@@ -68,6 +68,17 @@ pub const fn band_bound(b: usize) -> f64 {
     f64::from_bits((1023 + (b >> 2) as u64) << 52) * (5 + (b & 3)) as f64 / 4.0
 }
 
+/// Each band's bound (a table: a filing reads it for the band's odometer).
+const BOUNDS: [f64; BANDS] = {
+    let mut t = [0.0; BANDS];
+    let mut b = 0;
+    while b < BANDS {
+        t[b] = band_bound(b);
+        b += 1;
+    }
+    t
+};
+
 /// Odometer units per metre in each band (a table: a filing would otherwise divide).
 const PER_METRE: [f64; BANDS] = {
     let mut t = [0.0; BANDS];
@@ -78,6 +89,13 @@ const PER_METRE: [f64; BANDS] = {
     }
     t
 };
+
+/// An odometer reading in units (finite and not negative, far below `2^63`) as an integer:
+/// through `i64`, one conversion instruction where `u64`'s takes a dozen on x86-64.
+fn units(reading: f64) -> u64 {
+    debug_assert!((0.0..9e18).contains(&reading));
+    (reading as i64).max(0) as u64
+}
 
 /// Odometer units per metre in band `b`.
 fn per_metre(b: usize) -> f64 {
@@ -324,7 +342,7 @@ impl Schedule {
     /// Band `b`'s odometer: metres of camera-relative motion of a point `band_bound(b)` from
     /// the eye since the session began.
     fn odometer(&self, b: usize) -> f64 {
-        self.travel + band_bound(b) * self.turn
+        self.travel + BOUNDS[b] * self.turn
     }
 
     /// Advances the odometers by the camera's motion since the last call, and gives back the
@@ -359,7 +377,7 @@ impl Schedule {
         let per_metre = per_metre(band);
         let slack_units = (slack * per_metre).min(HORIZON_BUCKETS * UNITS as f64);
         let reading = self.odometer(band) * per_metre;
-        let key = (reading + slack_units) as u64;
+        let key = units(reading + slack_units);
         if self.wheels.len() <= band {
             self.wheels.resize_with(band + 1, Wheel::default);
         }
@@ -367,7 +385,7 @@ impl Schedule {
         if wheel.buckets.is_empty() {
             wheel.buckets = (0..WHEEL).map(|_| Bucket::default()).collect();
             // A band taken up again starts at its odometer, as a drain would leave it.
-            wheel.cursor = wheel.cursor.max(reading as u64 / UNITS);
+            wheel.cursor = wheel.cursor.max(units(reading) / UNITS);
         }
         // Already due (the band's cursor is past its bucket): due at the cursor's first drain.
         let (bucket, fine) = if key / UNITS < wheel.cursor {
@@ -404,7 +422,7 @@ impl Schedule {
     /// the same update if already due, and an entry in the odometer's own bucket may come out
     /// up to its reading's rounding early: examining a group early is only extra work.
     pub fn drain_band(&mut self, band: usize, out: &mut Vec<u32>) {
-        let now = (self.odometer(band) * per_metre(band)) as u64;
+        let now = units(self.odometer(band) * per_metre(band));
         let packing = self.packing;
         let wheel = &mut self.wheels[band];
         let target = now / UNITS;
