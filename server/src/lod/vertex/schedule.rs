@@ -16,7 +16,9 @@
 //!   beyond the wheel's horizon (14 buckets, 0.875 of the band's bound) is cut to it (the group
 //!   is then examined once per turn, which is conservative; on fuji_srtm3 no more groups were
 //!   examined than with a horizon of four bounds, and small sessions hold a quarter of the
-//!   bucket headers). Draining a band touches only the buckets the odometer passed.
+//!   bucket headers). Draining a band touches only the buckets the odometer passed. The wheels
+//!   lie in one array, from the lowest band in use to the highest, each holding its buckets
+//!   in place.
 //! - **Entries.** One `u32`: the node's index in the nominal quadtree (levels one after another,
 //!   row-major on a level's `2^l x 2^l` lattice, so the level comes back from the index's
 //!   leading zeros and the row and column from shifts), the due reading's place within its
@@ -29,7 +31,12 @@
 //! - **Chunks.** A bucket is a list of 32-entry chunks taken from one pool per session, so a
 //!   session holds its entries plus a partly filled chunk per bucket, not each bucket's largest
 //!   burst; the pool keeps a sixteenth of the chunks in use between updates and gives back the
-//!   rest.
+//!   rest. A bucket holds its first chunk's pointer itself (24 bytes, the further chunks'
+//!   list boxed): on a server holding many sessions each update starts with its session's
+//!   state out of the caches, and filing into a bucket or draining one then misses on the
+//!   wheel's line and the chunk's, not on a list's buffer between them as well (issue 11: with
+//!   a list per bucket, filing and draining took 23 % of the server's time at 750 crop
+//!   sessions, and 17 % this way).
 
 use glam::Vec3;
 use relief_proto::tree::NodeId;
@@ -197,25 +204,28 @@ pub fn chord(a: &[Vec3; 3], b: &[Vec3; 3]) -> f64 {
     (moved / 2.0).sqrt() + CHORD_GUARD
 }
 
-/// A list of boxed chunks: a chunk moves between buckets and the pool as a pointer, never
-/// copied.
-type Chunks = Vec<Box<[u32; CHUNK]>>;
+/// A chunk of entries: it moves between buckets and the pool as a pointer, never copied.
+type Chunk = Box<[u32; CHUNK]>;
 
 /// Chunks not in use, shared by a session's buckets.
 #[derive(Default)]
 struct Pool {
-    free: Chunks,
+    free: Vec<Chunk>,
     /// Chunks held by buckets.
     used: usize,
+    /// Words in the buckets' lists of further chunks (their `rest`: each list's three and its
+    /// room), summed: kept as they grow and shrink, so that the schedule's memory is known
+    /// without visiting every bucket.
+    rest_room: usize,
 }
 
 impl Pool {
-    fn take(&mut self) -> Box<[u32; CHUNK]> {
+    fn take(&mut self) -> Chunk {
         self.used += 1;
         self.free.pop().unwrap_or_else(|| Box::new([0; CHUNK]))
     }
 
-    fn give(&mut self, c: Box<[u32; CHUNK]>) {
+    fn give(&mut self, c: Chunk) {
         self.used -= 1;
         self.free.push(c);
     }
@@ -232,37 +242,90 @@ impl Pool {
     }
 }
 
-/// One bucket: a list of chunks, all full but the last.
+/// One bucket: its entries in chunks, all full but the last. The first chunk's pointer is held
+/// in the bucket itself, which lies in its wheel: filing into a bucket of up to a chunk of
+/// entries, or draining it, reads the wheel's line and the chunk's, where a list would add the
+/// line of its own buffer, a miss of its own on a loaded server (issue 11). The list of further
+/// chunks is boxed, so that a bucket takes 24 bytes.
 #[derive(Default)]
 struct Bucket {
-    chunks: Chunks,
-    len: usize,
+    len: u32,
+    first: Option<Chunk>,
+    /// The chunks after the first, once there are any.
+    #[allow(
+        clippy::box_collection,
+        reason = "a box is one word in the bucket where a list is three"
+    )]
+    rest: Option<Box<Vec<Chunk>>>,
 }
 
 impl Bucket {
+    /// Chunk `j` (it exists: `j` is below `len / CHUNK`, rounded up).
+    fn chunk(&mut self, j: usize) -> &mut [u32; CHUNK] {
+        let c = if j == 0 {
+            self.first.as_mut()
+        } else {
+            self.rest.as_mut().and_then(|r| r.get_mut(j - 1))
+        };
+        c.unwrap_or_else(|| unreachable!("bucket chunk {j} of {} entries", self.len))
+    }
+
     fn push(&mut self, e: u32, pool: &mut Pool) {
-        let i = self.len % CHUNK;
+        let (j, i) = (self.len as usize / CHUNK, self.len as usize % CHUNK);
         if i == 0 {
-            self.chunks.push(pool.take());
+            let c = pool.take();
+            if j == 0 {
+                self.first = Some(c);
+            } else {
+                let rest = self.rest.get_or_insert_with(|| {
+                    // The list's own three words.
+                    pool.rest_room += 3;
+                    Box::default()
+                });
+                let room = rest.capacity();
+                rest.push(c);
+                pool.rest_room += rest.capacity() - room;
+            }
         }
-        if let Some(c) = self.chunks.last_mut() {
-            c[i] = e;
-        }
+        self.chunk(j)[i] = e;
         self.len += 1;
+    }
+
+    /// Gives back the chunks beyond those `self.len` entries fill.
+    fn release(&mut self, pool: &mut Pool) {
+        let needed = (self.len as usize).div_ceil(CHUNK);
+        if let Some(rest) = &mut self.rest {
+            while rest.len() + 1 > needed.max(1) {
+                if let Some(c) = rest.pop() {
+                    pool.give(c);
+                }
+            }
+            if rest.is_empty() && rest.capacity() > 8 {
+                // Long lists go; short ones stay for the next burst.
+                pool.rest_room -= rest.capacity() + 3;
+                self.rest = None;
+            }
+        }
+        if needed == 0
+            && let Some(c) = self.first.take()
+        {
+            pool.give(c);
+        }
     }
 
     /// Moves every entry into `out`.
     fn drain(&mut self, out: &mut Vec<u32>, pool: &mut Pool) {
-        let mut left = self.len;
-        for c in self.chunks.drain(..) {
+        let mut left = self.len as usize;
+        for c in self
+            .first
+            .iter()
+            .chain(self.rest.iter().flat_map(|r| r.iter()))
+        {
             out.extend_from_slice(&c[..left.min(CHUNK)]);
             left = left.saturating_sub(CHUNK);
-            pool.give(c);
         }
         self.len = 0;
-        if self.chunks.capacity() > 64 {
-            self.chunks.shrink_to(8);
-        }
+        self.release(pool);
     }
 
     /// Moves the entries for which `due` holds into `out`, keeping the others in order. Without
@@ -270,46 +333,55 @@ impl Bucket {
     /// written both to a small staging buffer and back into the bucket, and only one of the two
     /// positions moves on (staging keeps `out` from growing by the entries kept).
     fn drain_due(&mut self, out: &mut Vec<u32>, pool: &mut Pool, due: impl Fn(u32) -> bool) {
+        let len = self.len as usize;
         let mut staged = [0u32; CHUNK];
         let (mut taken, mut kept) = (0, 0);
-        for i in 0..self.len {
-            let e = self.chunks[i / CHUNK][i % CHUNK];
-            let d = due(e) as usize;
-            staged[taken] = e;
-            taken += d;
-            if taken == CHUNK {
-                out.extend_from_slice(&staged);
-                taken = 0;
+        for j in 0..len.div_ceil(CHUNK) {
+            // A copy of the chunk read, so that the one written (the same or an earlier one:
+            // `kept` is at most the entries read) can be borrowed.
+            let read = *self.chunk(j);
+            let mut w = j;
+            let mut write = self.chunk(w);
+            for &e in &read[..(len - j * CHUNK).min(CHUNK)] {
+                let d = due(e) as usize;
+                staged[taken] = e;
+                taken += d;
+                if taken == CHUNK {
+                    out.extend_from_slice(&staged);
+                    taken = 0;
+                }
+                if kept / CHUNK != w {
+                    w = kept / CHUNK;
+                    write = self.chunk(w);
+                }
+                write[kept % CHUNK] = e;
+                kept += 1 - d;
             }
-            // `kept <= i`: the entries not read yet are not overwritten.
-            self.chunks[kept / CHUNK][kept % CHUNK] = e;
-            kept += 1 - d;
         }
         out.extend_from_slice(&staged[..taken]);
-        self.len = kept;
-        while self.chunks.len() > kept.div_ceil(CHUNK) {
-            if let Some(c) = self.chunks.pop() {
-                pool.give(c);
-            }
-        }
+        self.len = kept as u32;
+        self.release(pool);
     }
 }
 
-/// One band's wheel.
+/// One band's wheel, its buckets in place: the wheels lie one after another, so a band's cursor
+/// and buckets are found without following a pointer.
 #[derive(Default)]
 struct Wheel {
-    /// `WHEEL` buckets once the band is first used; bucket `b mod WHEEL` holds absolute bucket `b`.
-    buckets: Vec<Bucket>,
     /// The absolute bucket of the odometer at the last drain.
     cursor: u64,
     /// Entries held.
     live: usize,
+    /// Bucket `b mod WHEEL` holds absolute bucket `b`.
+    buckets: [Bucket; WHEEL as usize],
 }
 
 /// All bands' wheels and odometers.
 pub struct Schedule {
-    /// Per band up to the highest one used.
+    /// Per band from the lowest used (`base`) to the highest.
     wheels: Vec<Wheel>,
+    /// The band of `wheels[0]`.
+    base: usize,
     /// The chunks the buckets are made of.
     pool: Pool,
     /// How entries are packed for this tree.
@@ -330,6 +402,7 @@ impl Schedule {
     pub fn new(depth: u8) -> Schedule {
         Schedule {
             wheels: Vec::new(),
+            base: 0,
             pool: Pool::default(),
             packing: Packing::new(depth),
             travel: 0.0,
@@ -378,12 +451,9 @@ impl Schedule {
         let slack_units = (slack * per_metre).min(HORIZON_BUCKETS * UNITS as f64);
         let reading = self.odometer(band) * per_metre;
         let key = units(reading + slack_units);
-        if self.wheels.len() <= band {
-            self.wheels.resize_with(band + 1, Wheel::default);
-        }
-        let wheel = &mut self.wheels[band];
-        if wheel.buckets.is_empty() {
-            wheel.buckets = (0..WHEEL).map(|_| Bucket::default()).collect();
+        let i = self.wheel_for(band);
+        let wheel = &mut self.wheels[i];
+        if wheel.live == 0 {
             // A band taken up again starts at its odometer, as a drain would leave it.
             wheel.cursor = wheel.cursor.max(units(reading) / UNITS);
         }
@@ -398,14 +468,32 @@ impl Schedule {
         wheel.live += 1;
     }
 
+    /// The place of band `band`'s wheel, made (with those between it and the bands in use) if need be. The
+    /// wheels run from the lowest band used to the highest, exactly: a wheel holds its
+    /// buckets, so doubling the room, or starting at band 0 (a session's levers start at tens
+    /// of metres), would hold as many again unused.
+    fn wheel_for(&mut self, band: usize) -> usize {
+        if self.wheels.is_empty() {
+            self.base = band;
+        }
+        if band < self.base {
+            let more = self.base - band;
+            self.wheels.reserve_exact(more);
+            self.wheels
+                .splice(0..0, (0..more).map(|_| Wheel::default()));
+            self.base = band;
+        }
+        let i = band - self.base;
+        if self.wheels.len() <= i {
+            self.wheels.reserve_exact(i + 1 - self.wheels.len());
+            self.wheels.resize_with(i + 1, Wheel::default);
+        }
+        i
+    }
+
     /// Files `node` with generation `generation` as due at the next update.
     pub fn file_next(&mut self, node: NodeId, generation: u8) {
         self.next.push(self.packing.entry(node, 0, generation));
-    }
-
-    /// Number of bands in use, for [`Schedule::drain_band`].
-    pub fn bands(&self) -> usize {
-        self.wheels.len()
     }
 
     /// Moves the entries filed for the next update into `out`; the caller checks each against
@@ -417,14 +505,21 @@ impl Schedule {
         }
     }
 
-    /// Moves band `band`'s due entries into `out`; the caller checks each against the node's
-    /// current generation. Entries filed meanwhile into a band not yet drained may come out in
-    /// the same update if already due, and an entry in the odometer's own bucket may come out
-    /// up to its reading's rounding early: examining a group early is only extra work.
-    pub fn drain_band(&mut self, band: usize, out: &mut Vec<u32>) {
+    /// Moves every band's due entries into `out`, band after band from the lowest; the caller
+    /// checks each against the node's current generation.
+    pub fn drain_bands(&mut self, out: &mut Vec<u32>) {
+        for i in 0..self.wheels.len() {
+            self.drain_band(self.base + i, out);
+        }
+    }
+
+    /// Moves band `band`'s due entries into `out` (a band in use). An entry in the odometer's
+    /// own bucket may come out up to its reading's rounding early: examining a group early is
+    /// only extra work.
+    fn drain_band(&mut self, band: usize, out: &mut Vec<u32>) {
         let now = units(self.odometer(band) * per_metre(band));
         let packing = self.packing;
-        let wheel = &mut self.wheels[band];
+        let wheel = &mut self.wheels[band - self.base];
         let target = now / UNITS;
         if wheel.live == 0 {
             wheel.cursor = target;
@@ -444,33 +539,20 @@ impl Schedule {
                 // may come out early).
                 bucket.drain_due(out, &mut self.pool, |e| packing.fine(e) <= now_fine);
             }
-            wheel.live -= before - bucket.len;
+            wheel.live -= (before - bucket.len) as usize;
         }
         wheel.cursor = target.max(first);
-        if wheel.live == 0 {
-            // An empty band gives its buckets back.
-            wheel.buckets = Vec::new();
-        }
     }
 
     /// Bytes of memory held.
     pub fn memory_bytes(&self) -> usize {
-        let headers: usize = self
-            .wheels
-            .iter()
-            .map(|w| {
-                w.buckets.capacity() * std::mem::size_of::<Bucket>()
-                    + w.buckets
-                        .iter()
-                        .map(|b| b.chunks.capacity() * 8)
-                        .sum::<usize>()
-            })
-            .sum();
-        headers
+        // The wheels hold their buckets, each the pointer to its first chunk; the pool counts
+        // the chunks and the room of the lists of further ones.
+        self.wheels.capacity() * std::mem::size_of::<Wheel>()
             + (self.pool.used + self.pool.free.len()) * CHUNK * 4
+            + self.pool.rest_room * 8
             + self.pool.free.capacity() * 8
             + self.next.capacity() * 4
-            + self.wheels.capacity() * std::mem::size_of::<Wheel>()
     }
 }
 
@@ -585,9 +667,7 @@ mod tests {
         for step in 1..=60 {
             let travel = step as f64;
             s.advance(&view(step as f32));
-            for b in 0..s.bands() {
-                s.drain_band(b, &mut out);
-            }
+            s.drain_bands(&mut out);
             for e in out.drain(..) {
                 let (n, g) = s.entry_parts(e);
                 assert_eq!(g, 1);
@@ -608,5 +688,49 @@ mod tests {
             }
         }
         assert!(seen.iter().all(|&x| x));
+    }
+
+    proptest::proptest! {
+        /// A bucket of any size keeps its entries in order through pushes and drains: a drain of
+        /// the due ones gives exactly those, in order, and keeps the others, in order; the
+        /// chunks held are those the entries fill, and the pool gets the others back.
+        #[test]
+        fn buckets_keep_their_entries_in_order(
+            rounds in proptest::collection::vec((0u32..80, 0u32..4, proptest::bool::ANY), 1..12),
+        ) {
+            let mut pool = Pool::default();
+            let mut bucket = Bucket::default();
+            let mut model: Vec<u32> = Vec::new();
+            let mut next = 0u32;
+            for (pushes, modulus, all) in rounds {
+                for _ in 0..pushes {
+                    bucket.push(next, &mut pool);
+                    model.push(next);
+                    next += 1;
+                }
+                let mut out = Vec::new();
+                if all {
+                    bucket.drain(&mut out, &mut pool);
+                    proptest::prop_assert_eq!(&out, &model);
+                    model.clear();
+                } else {
+                    let due = |e: u32| modulus != 0 && e.is_multiple_of(modulus + 1);
+                    bucket.drain_due(&mut out, &mut pool, due);
+                    let (taken, left): (Vec<u32>, Vec<u32>) = model.iter().partition(|&&e| due(e));
+                    proptest::prop_assert_eq!(&out, &taken);
+                    model = left;
+                }
+                proptest::prop_assert_eq!(bucket.len as usize, model.len());
+                proptest::prop_assert_eq!(pool.used, model.len().div_ceil(CHUNK));
+                let mut all = Vec::new();
+                let mut copy = Bucket::default();
+                std::mem::swap(&mut copy, &mut bucket);
+                copy.drain(&mut all, &mut pool);
+                proptest::prop_assert_eq!(&all, &model);
+                for &e in &model {
+                    bucket.push(e, &mut pool);
+                }
+            }
+        }
     }
 }

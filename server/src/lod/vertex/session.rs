@@ -185,9 +185,7 @@ impl VertexSession {
             self.blocked.clear();
             let mut due = std::mem::take(&mut self.due);
             self.schedule.drain_next(&mut due);
-            for band in 0..self.schedule.bands() {
-                self.schedule.drain_band(band, &mut due);
-            }
+            self.schedule.drain_bands(&mut due);
             if let Some(start) = self.resumed.take() {
                 // The first update: every group of the cut continued from is due, read from
                 // the copy (the cut itself changes as they are examined).
