@@ -195,6 +195,37 @@ enum BenchCommand {
         #[command(flatten)]
         dem_args: DemArgs,
     },
+    /// Many vertex-stream sessions on one core, without the network: each flies its own seeded
+    /// random loop (the paths of `relief-client load --path random`), and at every pose each
+    /// takes one camera update (the update and its packed delta, as a server's session does).
+    /// The same updates run interleaved (every session in turn at each pose, as on a loaded
+    /// server, so each finds its state out of the caches) and one session at a time; both must
+    /// make the same deltas. Prints the time per update both ways, their ratio, and the
+    /// sessions one core could update at 10 Hz doing nothing else.
+    Sessions {
+        /// The DEM (same forms as `build`'s inputs).
+        #[arg(long, required = true, num_args = 1..)]
+        dem: Vec<String>,
+        /// Sessions updated in turn.
+        #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(1..=100_000))]
+        sessions: u64,
+        /// Poses each session flies, at 10 Hz (its first update, the whole initial cut, is
+        /// timed apart).
+        #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(2..=600))]
+        poses: u64,
+        /// Seed of the first session's path (session `i` flies seed + i, as `relief-client
+        /// load --path random --seed`).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Screen-space error threshold in pixels.
+        #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+        tau: f32,
+        /// Print one JSON object instead of a table.
+        #[arg(long)]
+        json: bool,
+        #[command(flatten)]
+        dem_args: DemArgs,
+    },
     /// Time the query library on one core (issue 16): rays from the standard path's cameras,
     /// half grazing (1-5 degrees down), half steep, cast by the max-mip pyramid and by the
     /// brute-force march in the same run (every answer must agree; the command fails if one
@@ -506,6 +537,34 @@ fn run() -> anyhow::Result<()> {
                     report.rays
                 );
             }
+        }
+        Command::Bench {
+            which:
+                BenchCommand::Sessions {
+                    dem,
+                    sessions,
+                    poses,
+                    seed,
+                    tau,
+                    json,
+                    dem_args,
+                },
+        } => {
+            crate::serve::validate::params(&relief_proto::view::Lens::STANDARD.into(), tau, None)
+                .map_err(anyhow::Error::msg)?;
+            let d = dem_args.load(&dem).context("cannot load the DEM")?;
+            let opts = crate::bench::sessions::SessionsBenchOptions {
+                sessions: sessions as usize,
+                poses: poses as usize,
+                seed,
+                params: LodParams {
+                    tau,
+                    ..LodParams::default()
+                },
+                progress: !dem_args.quiet,
+                ..Default::default()
+            };
+            print_report(&crate::bench::sessions::run(&d, &opts)?, json)?;
         }
         Command::Bench {
             which: BenchCommand::Lod { run },

@@ -33,3 +33,23 @@ fn crop_flies_without_cracks_desyncs_or_mismatches() {
         );
     }
 }
+
+#[test]
+fn interleaved_sessions_make_the_same_deltas_as_sessions_alone() {
+    // `bench sessions` fails unless every session's deltas are the same both ways.
+    use relief_server::bench::sessions::{SessionsBenchOptions, run};
+    let d = dem::embedded_default().unwrap();
+    let opts = SessionsBenchOptions {
+        sessions: 6,
+        poses: 30,
+        ..SessionsBenchOptions::default()
+    };
+    let r = run(&d, &opts).unwrap();
+    assert_eq!((r.sessions, r.poses, r.updates), (6, 30, 6 * 29), "{r:?}");
+    assert!(r.changes_p90 > 0.0 && r.body_bytes_mean > 0.0, "{r:?}");
+    assert!(
+        r.interleaved_us_mean > 0.0 && r.alone_us_mean > 0.0,
+        "{r:?}"
+    );
+    assert!(r.session_bytes_mean > 0.0, "{r:?}");
+}

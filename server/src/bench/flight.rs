@@ -55,19 +55,13 @@ impl Flight {
             &preprocess::BuildOptions { progress, ..build },
         )?;
         let store = Store::open(&store_path)?;
-        let geom = store.geometry();
-        let (w, h) = (geom.shape.width(), geom.shape.height());
-        let ground = |x: f32, y: f32| {
-            let (c, r) = geom.frame.to_grid(x, y);
-            let c = (c.round().max(0.0) as u32).min(w - 1);
-            let r = (r.round().max(0.0) as u32).min(h - 1);
-            dem.heights[(r * w + c) as usize]
-        };
-        let extent = (
-            (w - 1) as f32 * geom.frame.dx,
-            (h - 1) as f32 * geom.frame.dy,
+        let cams = Flight::paths_over(dem, &store, |extent, ground| {
+            camera_path(path, extent.0, extent.1, ground)
+        });
+        let (w, h) = (
+            store.geometry().shape.width(),
+            store.geometry().shape.height(),
         );
-        let cams = camera_path(path, extent.0, extent.1, ground);
         let frames = cams.len();
         let px_every = px_every.unwrap_or_else(|| {
             let lat = Lattice::for_grid(w, h, px_min_samples, 0);
@@ -83,6 +77,28 @@ impl Flight {
             built,
             _dir: dir,
         })
+    }
+
+    /// What `make` builds from the terrain's extent in metres (the grid's, from the first sample
+    /// to the last) and its ground height at a point (the DEM's nearest sample): a camera path.
+    pub fn paths_over<T>(
+        dem: &Dem,
+        store: &Store,
+        make: impl FnOnce((f32, f32), &dyn Fn(f32, f32) -> f32) -> T,
+    ) -> T {
+        let geom = store.geometry();
+        let (w, h) = (geom.shape.width(), geom.shape.height());
+        let ground = |x: f32, y: f32| {
+            let (c, r) = geom.frame.to_grid(x, y);
+            let c = (c.round().max(0.0) as u32).min(w - 1);
+            let r = (r.round().max(0.0) as u32).min(h - 1);
+            dem.heights[(r * w + c) as usize]
+        };
+        let extent = (
+            (w - 1) as f32 * geom.frame.dx,
+            (h - 1) as f32 * geom.frame.dy,
+        );
+        make(extent, &ground)
     }
 
     /// Grid width and height, samples.

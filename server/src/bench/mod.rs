@@ -6,12 +6,15 @@
 //! - [`compare`]: every stream at the same measured error.
 //! - [`formats`]: the standard formats' tiles over a whole terrain: bytes and making time.
 //! - [`query`]: the query library: max-mip rays against brute force, heights, HAT/HOT, sight.
+//! - [`sessions`]: many vertex-stream sessions on one core, interleaved as on a loaded server
+//!   and one at a time.
 //! - [`stats`]: medians and quantiles.
 pub mod compare;
 pub mod flight;
 pub mod formats;
 pub mod lod;
 pub mod query;
+pub mod sessions;
 pub mod stats;
 pub mod tiles;
 

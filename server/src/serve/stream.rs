@@ -71,6 +71,8 @@ pub struct Produced {
     pub complete: bool,
     /// The packed body.
     pub body: Vec<u8>,
+    /// What changed: splits and merges of the vertex stream, tiles added and removed.
+    pub changes: usize,
 }
 
 impl Stream {
@@ -139,6 +141,7 @@ impl Stream {
                     seq,
                     digest: u.digest,
                     complete: u.complete,
+                    changes: u.delta.added.len() + u.delta.removed.len(),
                     body: u.delta.encode(),
                 };
             }
@@ -172,6 +175,7 @@ impl Stream {
             seq,
             digest: delta.digest,
             complete,
+            changes: delta.merges.len() + delta.splits.len(),
             body: delta.pack_body_in(
                 &g.shape,
                 self.models.get_or_insert_with(Box::default),
