@@ -54,6 +54,9 @@ const SLACK_SAFETY: f64 = 0.98;
 /// (a few units of `2^-24` of those magnitudes, the discriminant written without cancellation)
 /// this covers several times over; the relative part is [`SLACK_SAFETY`]'s.
 const SLACK_GUARD: f32 = 2e-6;
+/// A lane's share of the rotation's lever (see [`Bounds`]) is raised by this much, relative:
+/// the square root and divisions it comes from round by a few units of `2^-24`.
+const SHARE_GUARD: f32 = 1e-5;
 /// Added to a lever's square, times the square of the distance it is computed from: the
 /// single-precision difference `d^2 - z^2` is within a few units of `2^-24 d^2`.
 const LEVER_GUARD: f32 = 1e-6;
@@ -345,6 +348,22 @@ fn trim<T>(v: &mut Vec<T>, len: usize) {
 /// `K`, that is at most `|v_perp| c + |v . f_0| c^2 / 2`, where `v_perp` is `v` off the view
 /// axis: rotation moves the depth of what lies near the axis far less than the point itself.
 /// A plane's distance (the margin) has no such axis, and moves by up to `|v| K + T`.
+///
+/// *Rotation's share.* A depth check's slack `s` is how far the depth and the horizontal reach
+/// may both move against the check, but the eye's travel moves both (by at most `T`) while the
+/// rotation moves only the depth (by at most `R`, the bound above): the reach is the horizontal
+/// distance from the eye. Over the plane of (reach moved `x`, depth moved `y`) the check holds
+/// in a region that holds `(s, s)`, and the motion reaches at most `(T, T + R)`. For a merge
+/// the region of the first branch, `(z + y)^2 <= b (r - x)`, is convex, and so is its
+/// intersection with the second's, `y <= b c - z`; it holds `(0, s_z)`, `s_z` the slack with the
+/// reach held, so it holds the chord to `(s, s)`, and the check holds while
+/// `T + (s / s_z) R <= s`. For a split the first branch's region, `y <= z - sqrt(a (r + x))`,
+/// lies above its boundary's tangent at `x = s` (the boundary is convex), whose slope is
+/// `-sqrt(a / (r + s)) / 2`, and the check holds while `T + R / (1 + sqrt(a / (r + s)) / 2)
+/// <= s` and `T + R <= z - near`; where the second branch (the depth alone) bounds, the share
+/// is 1. Each lane's lever (its off-axis distance and its distance along the axis) is
+/// multiplied by its share before the group takes the largest: a depth slack is spent by
+/// rotation at the share's rate.
 #[derive(Clone, Copy, Debug)]
 struct Bounds {
     /// Margin slack (metres) and the furthest distance from the eye of a box it bounds.
@@ -464,7 +483,8 @@ impl Bounds {
         );
         let err = f32x4::from(c.errs);
         let splat = f32x4::splat;
-        let (zero, two, four) = (f32x4::ZERO, splat(2.0), splat(4.0));
+        let (zero, half, one, two, four) =
+            (f32x4::ZERO, splat(0.5), f32x4::ONE, splat(2.0), splat(4.0));
         let near = splat(view.near());
         let off = splat(view.off_axis());
         let guard = splat(SLACK_GUARD);
@@ -473,8 +493,8 @@ impl Bounds {
         // real, else 0; and z - max(a c, near). Skipped for a group without split checks. The
         // discriminant `(2 z + a)^2 - 4 (z^2 - a r)` is `a (a + 4 (z + r))`, a sum of
         // positive terms where the root is used, so it does not cancel in single precision.
-        let split = if checks.0 == 0 {
-            zero
+        let (split, split_share) = if checks.0 == 0 {
+            (zero, one)
         } else {
             let a = splat(k.0 as f32) * err;
             let cs = z * z - a * r;
@@ -484,15 +504,22 @@ impl Bounds {
             let real = z.simd_gt(near) & cs.simd_ge(zero);
             let s_a = real.bitselect(root, zero);
             let s_c = z - near.fast_max(a * off);
-            let slack = s_c.fast_max(s_a) - guard * (z.abs() + r + a * off);
-            zero.fast_max(slack)
+            let raw = zero.fast_max(s_c.fast_max(s_a));
+            let slack = zero.fast_max(raw - guard * (z.abs() + r + a * off));
+            // Rotation's share where the first branch bounds (see [`Bounds`], *rotation's share*):
+            // its boundary's tangent at the slack before the guard (the guarded slack is
+            // smaller, which the tangent's condition allows), and the near plane's.
+            let tangent = one / (one + half * (a / (r + raw)).sqrt());
+            let share = tangent.fast_max(raw / (z - near));
+            let first = real & s_a.simd_gt(s_c);
+            (slack, first.bitselect(share, one))
         };
 
         // Merge, with the depth at least `near`: the larger root of (z + d)^2 = b (r - d)
         // where it is positive, else 0; and b c - z. Skipped for a group without merge checks.
         // The discriminant is `b (b + 4 (z + r))`, as for a split.
-        let merge = if checks.1 == 0 {
-            zero
+        let (merge, merge_share) = if checks.1 == 0 {
+            (zero, one)
         } else {
             let zm = near.fast_max(z);
             let b = splat(k.1 as f32) * err;
@@ -502,8 +529,14 @@ impl Bounds {
             let root = splat(-2.0) * cm / (bb + disc.sqrt());
             let s_a = cm.simd_le(zero).bitselect(root, zero);
             let s_c = b * off - zm;
-            let slack = s_c.fast_min(s_a) - guard * (zm + r + b * off);
-            zero.fast_max(slack)
+            let raw = zero.fast_max(s_c.fast_min(s_a));
+            let slack = zero.fast_max(raw - guard * (zm + r + b * off));
+            // Rotation's share (see [`Bounds`], *rotation's share*): the slack before the guard
+            // over the depth's own slack (the reach held), each branch's lowered by the guard.
+            let br = (b * r).sqrt();
+            let depth_only = (br - zm - guard * (zm + br)).fast_min(s_c - guard * (zm + b * off));
+            let share = depth_only.simd_gt(raw).bitselect(raw / depth_only, one);
+            (slack, share)
         };
 
         // Which lanes bound what.
@@ -518,10 +551,15 @@ impl Bounds {
         // Every point of a box is at most `d_max` from the eye and at least `depth` along the
         // axis (when that is not negative), so at most this far off it. A lever must not come
         // out short: the square is raised by more than its rounding.
-        let off_sq = z
+        // Rotation moves a depth lane's depth but not its reach: its lever counts at its share
+        // (raised by more than the share's rounding, and at most 1).
+        let share =
+            one.fast_min(merges.bitselect(merge_share, split_share) * splat(1.0 + SHARE_GUARD));
+        let off_sq = (z
             .simd_gt(zero)
             .bitselect(zero.fast_max(d * d - z * z), d * d)
-            + splat(LEVER_GUARD) * d * d;
+            + splat(LEVER_GUARD) * d * d)
+            * (share * share);
 
         let min = |on: f32x4, v: f32x4, acc: f64| -> f64 {
             let v = on.bitselect(v, inf).to_array();
@@ -537,7 +575,7 @@ impl Bounds {
         );
         self.depth = min(depth_on, depth_slack, self.depth);
         self.off_axis_sq = max(depth_on, off_sq, self.off_axis_sq);
-        self.along = max(depth_on, d, self.along);
+        self.along = max(depth_on, d * share, self.along);
     }
 }
 
@@ -559,8 +597,9 @@ mod tests {
             );
         }
 
-        /// A check that holds while the depth and reach of box `bv` move less than `slack`.
-        fn depth(&mut self, slack: f64, bv: &BoxView) {
+        /// A check that holds while the depth and reach of box `bv` move less than `slack`,
+        /// rotation spending it at `share` of its lever's rate.
+        fn depth(&mut self, slack: f64, bv: &BoxView, share: f64) {
             let d = bv.d_max as f64;
             // Every point of the box is at most `d_max` from the eye and at least `depth` along the
             // axis (when that is not negative), so at most this far off it.
@@ -571,14 +610,21 @@ mod tests {
                 d * d
             };
             self.depth = self.depth.lesser(slack);
-            self.off_axis_sq = self.off_axis_sq.greater(off_sq);
-            self.along = self.along.greater(d);
+            self.off_axis_sq = self.off_axis_sq.greater(off_sq * share * share);
+            self.along = self.along.greater(d * share);
         }
     }
 
     /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
     /// error at most `tau` stays at most `tau`; `k` is `focal / tau`.
-    fn split_slack(view: &ViewState, bv: &BoxView, err: f32, k: f64, bounds: &mut Bounds) {
+    fn split_slack(
+        view: &ViewState,
+        bv: &BoxView,
+        err: f32,
+        k: f64,
+        shared: bool,
+        bounds: &mut Bounds,
+    ) {
         if err <= 0.0 {
             return;
         }
@@ -593,7 +639,8 @@ mod tests {
         let a = k * err as f64;
         // Branch e <= K err (r + d) / (z - d)^2: the smaller root of (z - d)^2 = a (r + d).
         let c = z * z - a * r;
-        let s_a = if z > near && c >= 0.0 {
+        let real = z > near && c >= 0.0;
+        let s_a = if real {
             let b = 2.0 * z + a;
             let disc = (b * b - 4.0 * c).greater(0.0);
             (2.0 * c / (b + disc.sqrt())).lesser(z - near)
@@ -602,12 +649,27 @@ mod tests {
         };
         // Branch e <= K err c / (z - d). Leaving the frustum only lowers the error.
         let s_c = z - (a * view.off_axis() as f64).greater(near);
-        bounds.depth(s_a.greater(s_c).greater(0.0), bv);
+        let slack = s_a.greater(s_c).greater(0.0);
+        // Rotation's share: where the first branch bounds, its boundary's tangent at the slack
+        // and the near plane's.
+        let share = if shared && real && s_a > s_c {
+            (1.0 / (1.0 + (a / (r + slack)).sqrt() / 2.0)).greater(slack / (z - near))
+        } else {
+            1.0
+        };
+        bounds.depth(slack, bv, share);
     }
 
     /// Bounds how far a box may move relative to the camera while a node with error `err` and screen
     /// error at least `tau_m` stays at least `tau_m`; `k` is `focal / tau_m`.
-    fn merge_slack(view: &ViewState, bv: &BoxView, err: f32, k: f64, bounds: &mut Bounds) {
+    fn merge_slack(
+        view: &ViewState,
+        bv: &BoxView,
+        err: f32,
+        k: f64,
+        shared: bool,
+        bounds: &mut Bounds,
+    ) {
         let near = view.near() as f64;
         let z = (bv.depth as f64).greater(near);
         let r = bv.r_max as f64;
@@ -624,11 +686,72 @@ mod tests {
         let s_c = b * view.off_axis() as f64 - z;
         // Leaving the frustum drops the error to 0.
         bounds.margin((bv.margin as f64).greater(0.0), bv);
-        bounds.depth(s_a.lesser(s_c).greater(0.0), bv);
+        let slack = s_a.lesser(s_c).greater(0.0);
+        // Rotation's share: the slack over the depth's own (the reach held).
+        let depth_only = ((b * r).sqrt() - z).lesser(s_c);
+        let share = if shared && depth_only > slack {
+            slack / depth_only
+        } else {
+            1.0
+        };
+        bounds.depth(slack, bv, share);
+    }
+
+    /// A lane's screen error over its threshold, `a min(r / z, c) / z` (`a` is `k err`), with the
+    /// depth at least `near`.
+    fn error_ratio(view: &ViewState, a: f64, z: f64, r: f64) -> f64 {
+        let z = z.greater(view.near() as f64);
+        a * (r / z).lesser(view.off_axis() as f64) / z
     }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(3000))]
+
+        /// Rotation's share (see [`Bounds`]): a lane whose eye travelled `T` (moving its depth
+        /// and its reach by up to `T` each) and whose view turned so that its depth moved by
+        /// up to `R` more keeps its decision wherever `T + share R <= slack`, at the worst
+        /// corner of that motion and at random points inside it. A share of 1 would allow
+        /// `R <= slack - T` only.
+        #[test]
+        fn rotation_spends_a_depth_slack_at_its_share(
+            (z, r, e) in (0.5f64..5000.0, 0.0f64..2.0, -3.0f64..0.0),
+            (t, u, v) in (0.0f64..=1.0, 0.0f64..=1.0, 0.0f64..=1.0),
+            merge in any::<bool>(),
+        ) {
+            let view = ViewState::new(&camera(100, 100, (0.5, 0.5, 0.3, 0.2, 0.1)), &lens());
+            let r = r * z;
+            let bv = BoxView { margin: 1.0, depth: z as f32, r_max: r as f32, d_max: (z + r) as f32 };
+            let (z, r) = (bv.depth as f64, bv.r_max as f64);
+            // The error at `10^e` (split) or `10^-e` (merge) of the threshold.
+            let ratio = if merge { 10f64.powf(-e) } else { 10f64.powf(e) };
+            let (k, err) = (1.0, (ratio / error_ratio(&view, 1.0, z, r)) as f32);
+            let a = err as f64;
+            let mut b = Bounds::default();
+            let mut whole = Bounds::default();
+            if merge {
+                merge_slack(&view, &bv, err, k, true, &mut b);
+                merge_slack(&view, &bv, err, k, false, &mut whole);
+            } else {
+                split_slack(&view, &bv, err, k, true, &mut b);
+                split_slack(&view, &bv, err, k, false, &mut whole);
+            }
+            let slack = b.depth;
+            prop_assume!(slack > 0.0 && slack.is_finite());
+            let share = b.along / whole.along;
+            prop_assert!(share > 0.0 && share <= 1.0, "{share}");
+            // Travel `T`, then the most rotation the share allows, then a point inside.
+            let travel = t * slack;
+            let turn = (slack - travel) / share;
+            for (dr, dz) in [(travel, travel + turn), (u * travel, v * (travel + turn))] {
+                if merge {
+                    let ratio = error_ratio(&view, a, z.greater(view.near() as f64) + dz, r - dr);
+                    prop_assert!(ratio >= 1.0 - 1e-9, "merge {ratio} at {dr} {dz}: {slack} {share}");
+                } else {
+                    let ratio = error_ratio(&view, a, z - dz, r + dr);
+                    prop_assert!(ratio <= 1.0 + 1e-9, "split {ratio} at {dr} {dz}: {slack} {share}");
+                }
+            }
+        }
 
         /// The four-lane checks, in single precision, against the scalar ones in double
         /// precision (the reference), over random boxes (culled, behind the eye, nearer than
@@ -657,10 +780,13 @@ mod tests {
             });
             let merges = merges & !splits;
             let children = ChildViews { views: views.into(), errs, screen: [0.0; 4] };
-            let (mut four, mut scalar) = (Bounds::default(), Bounds::default());
+            // The reference, and the reference without rotation's shares (every lever whole).
+            let (mut four, mut scalar, mut whole) =
+                (Bounds::default(), Bounds::default(), Bounds::default());
             if due {
                 four.due_now();
                 scalar.due_now();
+                whole.due_now();
             }
             four.checks(&view, &children, (splits, merges), k);
             // The magnitudes a lane's slack is computed from, the largest of the checked lanes.
@@ -669,9 +795,11 @@ mod tests {
                 let (z, r) = (views[i].depth.abs() as f64, views[i].r_max as f64);
                 let reach = errs[i] as f64 * k.0.max(k.1) * view.off_axis() as f64;
                 if splits >> i & 1 != 0 {
-                    split_slack(&view, &views[i], errs[i], k.0, &mut scalar);
+                    split_slack(&view, &views[i], errs[i], k.0, true, &mut scalar);
+                    split_slack(&view, &views[i], errs[i], k.0, false, &mut whole);
                 } else if merges >> i & 1 != 0 {
-                    merge_slack(&view, &views[i], errs[i], k.1, &mut scalar);
+                    merge_slack(&view, &views[i], errs[i], k.1, true, &mut scalar);
+                    merge_slack(&view, &views[i], errs[i], k.1, false, &mut whole);
                 } else {
                     continue;
                 }
@@ -679,7 +807,10 @@ mod tests {
             }
             // What the frustum margin bounds, and how far, is exact.
             prop_assert_eq!(four.margin, scalar.margin);
-            prop_assert_eq!(four.along, scalar.along);
+            // The distance along the axis: no shorter than the reference's (its share raised
+            // by the guard), and no longer than with whole levers.
+            prop_assert!(four.along >= scalar.along, "{:?} {:?}", four, scalar);
+            prop_assert!(four.along <= whole.along, "{:?} {:?}", four, whole);
             // The depth slack: no larger, and smaller by little more than the guard.
             let slack = SLACK_GUARD as f64 * magnitude;
             prop_assert!(four.depth <= scalar.depth, "{:?} {:?}", four, scalar);
@@ -687,12 +818,13 @@ mod tests {
                 four.depth >= scalar.depth - 2.0 * slack - 1e-9,
                 "{:?} {:?} {}", four, scalar, slack
             );
-            // The off-axis lever: no shorter, and longer by little more than the guard.
-            let d2 = scalar.along * scalar.along;
+            // The off-axis lever: no shorter, and longer than with whole levers by little more
+            // than the guard.
+            let d2 = whole.along * whole.along;
             prop_assert!(four.off_axis_sq >= scalar.off_axis_sq, "{:?} {:?}", four, scalar);
             prop_assert!(
-                four.off_axis_sq <= scalar.off_axis_sq + 2.0 * LEVER_GUARD as f64 * d2 + 1e-9,
-                "{:?} {:?}", four, scalar
+                four.off_axis_sq <= whole.off_axis_sq + 2.0 * LEVER_GUARD as f64 * d2 + 1e-9,
+                "{:?} {:?}", four, whole
             );
             // Due no later at any motion: `T + lever K >= slack` meets both axes no further out.
             match (four.filing(), scalar.filing()) {
