@@ -57,6 +57,10 @@ const SLACK_GUARD: f32 = 2e-6;
 /// A lane's share of the rotation's lever (see [`Bounds`]) is raised by this much, relative:
 /// the square root and divisions it comes from round by a few units of `2^-24`.
 const SHARE_GUARD: f32 = 1e-5;
+/// A group's lever is raised by this much, relative: its few single-precision operations
+/// (divisions and square roots from the lanes' slacks and distances) round by a few units of
+/// `2^-24` each.
+const LEVER_ROUND: f64 = 1e-5;
 /// Added to a lever's square, times the square of the distance it is computed from: the
 /// single-precision difference `d^2 - z^2` is within a few units of `2^-24 d^2`.
 const LEVER_GUARD: f32 = 1e-6;
@@ -362,28 +366,37 @@ fn trim<T>(v: &mut Vec<T>, len: usize) {
 /// `-sqrt(a / (r + s)) / 2`, and the check holds while `T + R / (1 + sqrt(a / (r + s)) / 2)
 /// <= s` and `T + R <= z - near`; where the second branch (the depth alone) bounds, the share
 /// is 1. Each lane's lever (its off-axis distance and its distance along the axis) is
-/// multiplied by its share before the group takes the largest: a depth slack is spent by
-/// rotation at the share's rate.
+/// multiplied by its share: a depth slack is spent by rotation at the share's rate.
+///
+/// *Levers per lane.* The group is filed with the smallest slack `s` of its lanes and the
+/// largest of the levers each lane needs at that slack: a lane with slack `s_i >= s` and
+/// lever `L_i` holds while `T + L_i K < s_i`, which `T + L K < s` implies once
+/// `L >= L_i s / s_i` (then `L_i K < (s - T) s_i / s <= s_i - T`). So a lane far from its
+/// decision lends little to the lever, however far it lies. A margin lane's lever at the
+/// group's slack is `d s / m` (its box at most `d` from the eye, its margin slack `m`); a depth
+/// lane's is the larger root of `L^2 - (off s / s_i) L - along s^2 / (2 s_i)` (`off` and
+/// `along` its shared distances off and along the axis): until the group is due `K < s / L`,
+/// so the depth's quadratic term `along K^2 / 2` is at most `along K s / (2 L)`, and this `L`
+/// keeps `T + off K + along K^2 / 2 < s_i` (exact where `s_i = s`).
 #[derive(Clone, Copy, Debug)]
 struct Bounds {
-    /// Margin slack (metres) and the furthest distance from the eye of a box it bounds.
-    margin: (f64, f64),
-    /// Depth and reach slack (metres).
+    /// The smallest margin slack (metres).
+    margin: f64,
+    /// The smallest depth and reach slack (metres).
     depth: f64,
-    /// The square of the furthest distance off the view axis of a box whose depth `depth`
-    /// bounds (one square root per group at filing, not one per check: the root of the largest
-    /// square is the largest root, bit for bit), and the furthest distance along it.
-    off_axis_sq: f64,
-    along: f64,
+    /// The lever for the group's slack (`min(margin, depth)`), metres.
+    lever: f64,
+    /// The furthest distance from the eye of a checked box (the band of a group due now).
+    reach: f64,
 }
 
 impl Default for Bounds {
     fn default() -> Bounds {
         Bounds {
-            margin: (f64::INFINITY, 0.0),
+            margin: f64::INFINITY,
             depth: f64::INFINITY,
-            off_axis_sq: 0.0,
-            along: 0.0,
+            lever: 0.0,
+            reach: 0.0,
         }
     }
 }
@@ -391,39 +404,21 @@ impl Default for Bounds {
 impl Bounds {
     /// Makes the group due at the next drain.
     fn due_now(&mut self) {
-        self.margin.0 = 0.0;
+        self.margin = 0.0;
     }
 
     /// The slack to file the group with and the lever arm of its band: the group is due once
-    /// `T + lever K` reaches `slack`, which comes no later than either bound can be reached.
-    /// None when nothing can change.
-    ///
-    /// Until then `K < slack / lever`, so the depth's quadratic term is at most
-    /// `along K / 2 * slack / lever`; the lever solves `lever = (off_axis + along (slack / lever)
-    /// / 2) slack / depth`, the smallest that keeps the depth bound (and exact at `depth` =
-    /// `slack`). For the margin, `lever >= margin's distance * slack / margin slack` keeps it.
+    /// `T + lever K` reaches `slack`, which comes no later than any lane's bound can be
+    /// reached. None when nothing can change.
     fn filing(&self) -> Option<(f64, f64)> {
-        let (m, m_reach) = self.margin;
-        let s = self.depth;
-        let slack = m.lesser(s).greater(0.0);
+        let slack = self.margin.lesser(self.depth).greater(0.0);
         if !slack.is_finite() {
             return None;
         }
         if slack == 0.0 {
-            return Some((0.0, m_reach.greater(self.along)));
+            return Some((0.0, self.reach));
         }
-        // Without a branch on which bounds exist: an infinite slack (no check of that kind)
-        // makes its term 0 (`x / inf`), and the lever is at least 0.
-        let margin_lever = m_reach * slack / m;
-        // lever^2 - (off_axis slack / s) lever - along slack^2 / (2 s) = 0, larger root.
-        let ratio = slack / s;
-        let (p, q) = (
-            self.off_axis_sq.sqrt() * ratio,
-            self.along * slack * ratio / 2.0,
-        );
-        let depth_lever = (p + (p * p + 4.0 * q).sqrt()) / 2.0;
-        let lever = 0.0.greater(margin_lever).greater(depth_lever);
-        Some((slack, lever))
+        Some((slack, self.lever))
     }
 }
 
@@ -569,13 +564,26 @@ impl Bounds {
             let v = on.bitselect(v, zero).to_array();
             acc.greater(v[0].greater(v[1]).greater(v[2].greater(v[3])) as f64)
         };
-        self.margin = (
-            min(margin_on, margin_slack, self.margin.0),
-            max(margin_on, d, self.margin.1),
-        );
+        self.margin = min(margin_on, margin_slack, self.margin);
         self.depth = min(depth_on, depth_slack, self.depth);
-        self.off_axis_sq = max(depth_on, off_sq, self.off_axis_sq);
-        self.along = max(depth_on, d * share, self.along);
+        let along = d * share;
+        self.reach = max(margin_on, d, max(depth_on, along, self.reach));
+        // Each lane's levers at the group's slack (see [`Bounds`], *levers per lane*), in single
+        // precision: the margin's `d slack / m`, and the depth's larger root. A lane without a
+        // check of a kind has that kind's slack infinite, so its term is 0.
+        let slack = self.margin.lesser(self.depth).greater(0.0);
+        if slack > 0.0 && slack.is_finite() {
+            let g = splat(slack as f32);
+            let m = margin_on.bitselect(margin_slack, inf);
+            let s = depth_on.bitselect(depth_slack, inf);
+            let ratio = g / s;
+            let p = off_sq.sqrt() * ratio;
+            let q = half * along * g * ratio;
+            let depth_lever = half * (p + (p * p + four * q).sqrt());
+            let lever = (d * g / m).fast_max(depth_lever);
+            // Rounded up by more than the single precision's roundings.
+            self.lever = max(margin_on | depth_on, lever, 0.0) * (1.0 + LEVER_ROUND);
+        }
     }
 }
 
@@ -588,13 +596,21 @@ mod tests {
     use proptest::prelude::*;
     use relief_proto::view::BoxView;
 
-    impl Bounds {
+    /// The reference's lanes, in double precision: each check's kind, slack and lever terms.
+    #[derive(Clone, Debug, Default)]
+    struct Reference {
+        /// Margin checks: (slack, distance).
+        margins: Vec<(f64, f64)>,
+        /// Depth checks: (slack, off-axis distance, distance along the axis), both distances
+        /// times the lane's share.
+        depths: Vec<(f64, f64, f64)>,
+        due: bool,
+    }
+
+    impl Reference {
         /// A check that holds while the frustum margin of box `bv` moves less than `slack`.
         fn margin(&mut self, slack: f64, bv: &BoxView) {
-            self.margin = (
-                self.margin.0.lesser(slack),
-                self.margin.1.greater(bv.d_max as f64),
-            );
+            self.margins.push((slack, bv.d_max as f64));
         }
 
         /// A check that holds while the depth and reach of box `bv` move less than `slack`,
@@ -609,9 +625,51 @@ mod tests {
             } else {
                 d * d
             };
-            self.depth = self.depth.lesser(slack);
-            self.off_axis_sq = self.off_axis_sq.greater(off_sq * share * share);
-            self.along = self.along.greater(d * share);
+            self.depths.push((slack, off_sq.sqrt() * share, d * share));
+        }
+
+        fn smallest_margin(&self) -> f64 {
+            let m = self
+                .margins
+                .iter()
+                .fold(f64::INFINITY, |a, &(s, _)| a.lesser(s));
+            if self.due { 0.0 } else { m }
+        }
+
+        fn smallest_depth(&self) -> f64 {
+            self.depths
+                .iter()
+                .fold(f64::INFINITY, |a, &(s, ..)| a.lesser(s))
+        }
+
+        /// The largest shared distance along the axis of the depth checks.
+        fn along(&self) -> f64 {
+            self.depths
+                .iter()
+                .fold(0.0, |a, &(.., along)| a.greater(along))
+        }
+
+        /// The group's slack and lever (see [`Bounds`], *levers per lane*; the slack of a
+        /// group due now is 0, whatever its lever).
+        fn filing(&self) -> Option<(f64, f64)> {
+            let slack = self
+                .smallest_margin()
+                .lesser(self.smallest_depth())
+                .greater(0.0);
+            if !slack.is_finite() {
+                return None;
+            }
+            if slack == 0.0 {
+                return Some((0.0, 0.0));
+            }
+            let margin = self.margins.iter().map(|&(m, d)| d * slack / m);
+            // The larger root of `L^2 - (off slack / s) L - along slack^2 / (2 s)`.
+            let depth = self.depths.iter().map(|&(s, off, along)| {
+                let ratio = slack / s;
+                let (p, q) = (off * ratio, along * slack * ratio / 2.0);
+                (p + (p * p + 4.0 * q).sqrt()) / 2.0
+            });
+            Some((slack, margin.chain(depth).fold(0.0, f64::greater)))
         }
     }
 
@@ -623,7 +681,7 @@ mod tests {
         err: f32,
         k: f64,
         shared: bool,
-        bounds: &mut Bounds,
+        bounds: &mut Reference,
     ) {
         if err <= 0.0 {
             return;
@@ -668,7 +726,7 @@ mod tests {
         err: f32,
         k: f64,
         shared: bool,
-        bounds: &mut Bounds,
+        bounds: &mut Reference,
     ) {
         let near = view.near() as f64;
         let z = (bv.depth as f64).greater(near);
@@ -726,8 +784,8 @@ mod tests {
             let ratio = if merge { 10f64.powf(-e) } else { 10f64.powf(e) };
             let (k, err) = (1.0, (ratio / error_ratio(&view, 1.0, z, r)) as f32);
             let a = err as f64;
-            let mut b = Bounds::default();
-            let mut whole = Bounds::default();
+            let mut b = Reference::default();
+            let mut whole = Reference::default();
             if merge {
                 merge_slack(&view, &bv, err, k, true, &mut b);
                 merge_slack(&view, &bv, err, k, false, &mut whole);
@@ -735,9 +793,9 @@ mod tests {
                 split_slack(&view, &bv, err, k, true, &mut b);
                 split_slack(&view, &bv, err, k, false, &mut whole);
             }
-            let slack = b.depth;
+            let slack = b.smallest_depth();
             prop_assume!(slack > 0.0 && slack.is_finite());
-            let share = b.along / whole.along;
+            let share = b.along() / whole.along();
             prop_assert!(share > 0.0 && share <= 1.0, "{share}");
             // Travel `T`, then the most rotation the share allows, then a point inside.
             let travel = t * slack;
@@ -781,12 +839,12 @@ mod tests {
             let merges = merges & !splits;
             let children = ChildViews { views: views.into(), errs, screen: [0.0; 4] };
             // The reference, and the reference without rotation's shares (every lever whole).
-            let (mut four, mut scalar, mut whole) =
-                (Bounds::default(), Bounds::default(), Bounds::default());
+            let mut four = Bounds::default();
+            let (mut scalar, mut whole) = (Reference::default(), Reference::default());
             if due {
                 four.due_now();
-                scalar.due_now();
-                whole.due_now();
+                scalar.due = true;
+                whole.due = true;
             }
             four.checks(&view, &children, (splits, merges), k);
             // The magnitudes a lane's slack is computed from, the largest of the checked lanes.
@@ -806,32 +864,26 @@ mod tests {
                 magnitude = magnitude.max(z + r + reach + view.near() as f64);
             }
             // What the frustum margin bounds, and how far, is exact.
-            prop_assert_eq!(four.margin, scalar.margin);
-            // The distance along the axis: no shorter than the reference's (its share raised
-            // by the guard), and no longer than with whole levers.
-            prop_assert!(four.along >= scalar.along, "{:?} {:?}", four, scalar);
-            prop_assert!(four.along <= whole.along, "{:?} {:?}", four, whole);
+            prop_assert_eq!(four.margin, scalar.smallest_margin());
             // The depth slack: no larger, and smaller by little more than the guard.
             let slack = SLACK_GUARD as f64 * magnitude;
-            prop_assert!(four.depth <= scalar.depth, "{:?} {:?}", four, scalar);
-            prop_assert!(
-                four.depth >= scalar.depth - 2.0 * slack - 1e-9,
-                "{:?} {:?} {}", four, scalar, slack
-            );
-            // The off-axis lever: no shorter, and longer than with whole levers by little more
-            // than the guard.
-            let d2 = whole.along * whole.along;
-            prop_assert!(four.off_axis_sq >= scalar.off_axis_sq, "{:?} {:?}", four, scalar);
-            prop_assert!(
-                four.off_axis_sq <= whole.off_axis_sq + 2.0 * LEVER_GUARD as f64 * d2 + 1e-9,
-                "{:?} {:?}", four, whole
-            );
+            let depth = scalar.smallest_depth();
+            prop_assert!(four.depth <= depth, "{:?} {:?}", four, scalar);
+            prop_assert!(four.depth >= depth - 2.0 * slack - 1e-9, "{:?} {:?} {}", four, scalar, slack);
             // Due no later at any motion: `T + lever K >= slack` meets both axes no further out.
             match (four.filing(), scalar.filing()) {
                 (Some((s4, l4)), Some((s, l))) => {
                     prop_assert!(s4 <= s, "{s4} {s}");
                     // (Where the margin binds, both sides are the same ratio, up to rounding.)
                     prop_assert!(s4 * l <= s * l4 * (1.0 + 1e-12), "{s4} {l4} {s} {l}");
+                    // And no longer than whole levers need, beyond the guards.
+                    if s4 > 0.0 {
+                        let (_, lw) = whole.filing().unwrap_or((0.0, 0.0));
+                        prop_assert!(
+                            l4 <= lw * s4 / s * 1.001 + LEVER_GUARD.sqrt() as f64 * whole.along() * 2.0 + 1e-6,
+                            "{s4} {l4} {s} {lw}"
+                        );
+                    }
                 }
                 // Filed where the reference needs no filing: due sooner, never later.
                 (Some(_), None) | (None, None) => {}
