@@ -567,7 +567,6 @@ impl Bounds {
         self.margin = min(margin_on, margin_slack, self.margin);
         self.depth = min(depth_on, depth_slack, self.depth);
         let along = d * share;
-        self.reach = max(margin_on, d, max(depth_on, along, self.reach));
         // Each lane's levers at the group's slack (see [`Bounds`], *levers per lane*), in single
         // precision: the margin's `d slack / m`, and the depth's larger root. A lane without a
         // check of a kind has that kind's slack infinite, so its term is 0.
@@ -583,6 +582,9 @@ impl Bounds {
             let lever = (d * g / m).fast_max(depth_lever);
             // Rounded up by more than the single precision's roundings.
             self.lever = max(margin_on | depth_on, lever, 0.0) * (1.0 + LEVER_ROUND);
+        } else {
+            // Only a group due now needs its reach (for its band).
+            self.reach = max(margin_on, d, max(depth_on, along, self.reach));
         }
     }
 }
@@ -876,11 +878,13 @@ mod tests {
                     prop_assert!(s4 <= s, "{s4} {s}");
                     // (Where the margin binds, both sides are the same ratio, up to rounding.)
                     prop_assert!(s4 * l <= s * l4 * (1.0 + 1e-12), "{s4} {l4} {s} {l}");
-                    // And no longer than whole levers need, beyond the guards.
+                    // And no longer than whole levers need, beyond the guards: a lane's ratio of
+                    // the group's slack to its own grows by at most its slack's guard, relative.
                     if s4 > 0.0 {
                         let (_, lw) = whole.filing().unwrap_or((0.0, 0.0));
+                        let guarded = 1.001 + 4.0 * slack / s4;
                         prop_assert!(
-                            l4 <= lw * s4 / s * 1.001 + LEVER_GUARD.sqrt() as f64 * whole.along() * 2.0 + 1e-6,
+                            l4 <= lw * guarded + LEVER_GUARD.sqrt() as f64 * whole.along() * 2.0 + 1e-6,
                             "{s4} {l4} {s} {lw}"
                         );
                     }
