@@ -99,6 +99,12 @@ impl Cut {
         self.interior.member_tag(node)
     }
 
+    /// Prefetches what [`Cut::interior_tag`] of `node` reads.
+    #[inline(always)]
+    pub fn prefetch_tag(&self, node: NodeId) {
+        self.interior.prefetch(node)
+    }
+
     /// Sets the tag of interior node `node` in a [`Cut::tagged`] cut (its low four bits).
     #[inline]
     pub fn set_tag(&mut self, node: NodeId, tag: u8) {

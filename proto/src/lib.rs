@@ -16,6 +16,7 @@
 //!   [`close`]: the reasons a session ends; [`snapshot`]: a cut in one bit per inner node.
 //! - [`errors`]: one-line error reports for the command lines.
 //! - [`float`]: minimum and maximum of floats that are never NaN, one instruction each.
+//! - [`prefetch`]: the hint that a cache line will be read soon.
 //! - [`path`]: the standard and stress camera paths.
 //! - [`query`]: terrain query batches and their answers (heights, HAT/HOT, rays, lines of
 //!   sight).
@@ -40,6 +41,7 @@ pub mod msg;
 pub mod nodeset;
 mod paged;
 pub mod path;
+pub mod prefetch;
 pub mod query;
 pub mod range;
 pub mod rng;

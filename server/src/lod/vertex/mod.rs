@@ -38,6 +38,7 @@ use crate::store::layout::{QuadLayout, rec_code, rec_z};
 use relief_proto::cut::Cut;
 use relief_proto::delta::{Delta, Parents, Split};
 use relief_proto::haar::{self, Presence, error_value};
+use relief_proto::prefetch::prefetch;
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tree::NodeId;
 use relief_proto::view::{BoxView, QuadViews, ViewState};
@@ -162,6 +163,17 @@ impl<'s> VertexEngine<'s> {
             views,
             errs,
             screen,
+        }
+    }
+
+    /// Prefetches the quad of records of `node`'s children, a few groups ahead of their
+    /// examination.
+    #[inline]
+    pub fn prefetch_children(&self, node: NodeId) {
+        if node.level + 1 < self.geom.shape.depth()
+            && let Some(r) = self.nodes.get(self.layout.children_slot(node))
+        {
+            prefetch(r);
         }
     }
 

@@ -64,6 +64,8 @@ const LEVER_ROUND: f64 = 1e-5;
 /// Added to a lever's square, times the square of the distance it is computed from: the
 /// single-precision difference `d^2 - z^2` is within a few units of `2^-24 d^2`.
 const LEVER_GUARD: f32 = 1e-6;
+/// How many due groups ahead of the one examined its cut's page and records are prefetched.
+const AHEAD: usize = 4;
 
 /// A session's cut plus the schedule of its next checks.
 pub struct VertexSession {
@@ -210,7 +212,15 @@ impl VertexSession {
                     }
                 }
             }
-            for &e in &due {
+            // The groups' state is scattered (and, on a loaded server, out of the caches): a
+            // group's page of the cut and its children's records are prefetched AHEAD groups
+            // before its examination, so that their loads overlap.
+            for (i, &e) in due.iter().enumerate() {
+                if let Some(&ahead) = due.get(i + AHEAD) {
+                    let n = self.schedule.entry_parts(ahead).0;
+                    self.cut.prefetch_tag(n);
+                    engine.prefetch_children(n);
+                }
                 let (node, generation) = self.schedule.entry_parts(e);
                 let tag = self.cut.interior_tag(node);
                 if tag.is_some_and(|t| self.schedule.generation(t) == generation) {

@@ -368,3 +368,42 @@ fn a_node_just_split_is_not_evaluated_again_for_its_merge_check() {
         "session {session_visits} full pass {full_visits}"
     );
 }
+
+#[test]
+fn prefetching_any_node_reads_nothing_out_of_bounds() {
+    // The update prefetches the cut's page and the children's records of groups ahead of
+    // their examination (issue 11): on a grid with odd borders, for every node of every level
+    // (leaves and nodes outside the grid included), in an empty cut and a deep one.
+    let (w, h) = (37u32, 23u32);
+    let dir = tempfile::tempdir().unwrap();
+    let s = store(dir.path(), w, h, 5);
+    let engine = VertexEngine::new(&s);
+    let shape = &engine.geometry().shape;
+    let view = ViewState::new(&camera(w, h, (0.5, 0.5, 0.1, 0.2, 0.3)), &lens());
+    let deep = engine.initial_cut(
+        &view,
+        &LodParams {
+            tau: 0.1,
+            ..LodParams::default()
+        },
+        &mut UpdateStats::default(),
+    );
+    // Pages on every inner level.
+    assert!(
+        deep.interior_nodes().any(|n| n.level + 2 == shape.depth()),
+        "{} interior nodes",
+        deep.interior_nodes().count()
+    );
+    for cut in [Cut::root(shape), deep] {
+        for level in 0..=shape.depth() {
+            let (cw, ch) = shape.level_dims(level.min(shape.depth() - 1));
+            for y in 0..=ch {
+                for x in 0..=cw {
+                    let n = NodeId { level, x, y };
+                    engine.prefetch_children(n);
+                    cut.prefetch_tag(n);
+                }
+            }
+        }
+    }
+}
