@@ -394,7 +394,9 @@ fn prefetching_any_node_reads_nothing_out_of_bounds() {
         "{} interior nodes",
         deep.interior_nodes().count()
     );
-    for cut in [Cut::root(shape), deep] {
+    // Tagged as a session's cut is (its tags are prefetched too), and untagged.
+    let root = Cut::root(shape);
+    for cut in [root.tagged(shape), deep.tagged(shape), root, deep] {
         for level in 0..=shape.depth() {
             let (cw, ch) = shape.level_dims(level.min(shape.depth() - 1));
             for y in 0..=ch {
