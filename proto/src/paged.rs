@@ -78,6 +78,7 @@ impl<T: Copy + Default> Paged<T> {
     }
 
     /// The slot of `(c, r)` if its page exists (the record may be absent).
+    #[inline]
     pub(crate) fn slot(&self, c: u32, r: u32) -> Option<Slot> {
         let (region, page, i) = self.locate(c, r);
         match self.top[region] {
@@ -89,40 +90,54 @@ impl<T: Copy + Default> Paged<T> {
         }
     }
 
-    /// The slot of `(c, r)`, making its page if needed.
+    /// The slot of `(c, r)`, making its page if needed. Inlined for the page that exists (the
+    /// fan mesh calls it per cell), the page made out of line.
+    #[inline]
     pub(crate) fn slot_or_make(&mut self, c: u32, r: u32) -> Slot {
         let (region, page, i) = self.locate(c, r);
+        let g = self.top[region];
+        if g != NONE {
+            let p = self.regions[g as usize][page];
+            if p != NONE {
+                return (p, i);
+            }
+        }
+        (self.make_page(c, r, region, page), i)
+    }
+
+    /// Makes the page of `(c, r)`, found at `page` of region `region`, and its region if needed.
+    #[cold]
+    #[inline(never)]
+    fn make_page(&mut self, c: u32, r: u32, region: usize, page: usize) -> u32 {
         let mut g = self.top[region];
         if g == NONE {
             g = self.regions.len() as u32;
             self.regions.push([NONE; 64]);
             self.top[region] = g;
         }
-        let mut p = self.regions[g as usize][page];
-        if p == NONE {
-            let new = Page {
-                records: [T::default(); 64],
-                present: 0,
-                marks: 0,
-                px: (c >> PAGE) as u16,
-                py: (r >> PAGE) as u16,
-            };
-            p = match self.free.pop() {
-                Some(p) => {
-                    self.pages[p as usize] = new;
-                    p
-                }
-                None => {
-                    self.pages.push(new);
-                    self.pages.len() as u32 - 1
-                }
-            };
-            self.regions[g as usize][page] = p;
-        }
-        (p, i)
+        let new = Page {
+            records: [T::default(); 64],
+            present: 0,
+            marks: 0,
+            px: (c >> PAGE) as u16,
+            py: (r >> PAGE) as u16,
+        };
+        let p = match self.free.pop() {
+            Some(p) => {
+                self.pages[p as usize] = new;
+                p
+            }
+            None => {
+                self.pages.push(new);
+                self.pages.len() as u32 - 1
+            }
+        };
+        self.regions[g as usize][page] = p;
+        p
     }
 
     /// The record of `(c, r)`, if present.
+    #[inline]
     pub(crate) fn get(&self, c: u32, r: u32) -> Option<&T> {
         let (p, i) = self.slot(c, r)?;
         let pg = &self.pages[p as usize];

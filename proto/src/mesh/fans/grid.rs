@@ -24,12 +24,14 @@ impl CellGrid {
     }
 
     /// The record of cell `(c, r)`.
+    #[inline]
     pub(super) fn get(&self, c: u32, r: u32) -> u16 {
         self.cells.get(c, r).copied().unwrap_or(0)
     }
 
     /// Sets cell `(c, r)` to `record`, marking it dirty if `track`; returns the old record, or
     /// `None` if it was already `record`.
+    #[inline]
     pub(super) fn set(&mut self, c: u32, r: u32, record: u16, track: bool) -> Option<u16> {
         let (p, i) = if record == 0 {
             self.cells.slot(c, r)?
