@@ -81,12 +81,16 @@ impl<T: Copy + Default> Paged<T> {
     #[inline]
     pub(crate) fn slot(&self, c: u32, r: u32) -> Option<Slot> {
         let (region, page, i) = self.locate(c, r);
+        let p = self.page_at(region, page);
+        (p != NONE).then_some((p, i))
+    }
+
+    /// The index of the page at `page` of region `region`, or [`NONE`].
+    #[inline]
+    fn page_at(&self, region: usize, page: usize) -> u32 {
         match self.top[region] {
-            NONE => None,
-            g => match self.regions[g as usize][page] {
-                NONE => None,
-                p => Some((p, i)),
-            },
+            NONE => NONE,
+            g => self.regions[g as usize][page],
         }
     }
 
@@ -95,17 +99,14 @@ impl<T: Copy + Default> Paged<T> {
     #[inline]
     pub(crate) fn slot_or_make(&mut self, c: u32, r: u32) -> Slot {
         let (region, page, i) = self.locate(c, r);
-        let g = self.top[region];
-        if g != NONE {
-            let p = self.regions[g as usize][page];
-            if p != NONE {
-                return (p, i);
-            }
+        match self.page_at(region, page) {
+            NONE => (self.make_page(c, r, region, page), i),
+            p => (p, i),
         }
-        (self.make_page(c, r, region, page), i)
     }
 
-    /// Makes the page of `(c, r)`, found at `page` of region `region`, and its region if needed.
+    /// Makes the absent page of `(c, r)`, at `page` of region `region`, and the region if
+    /// needed; returns its index.
     #[cold]
     #[inline(never)]
     fn make_page(&mut self, c: u32, r: u32, region: usize, page: usize) -> u32 {
