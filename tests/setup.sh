@@ -10,18 +10,30 @@
 #   web/build-wasm.sh builds from the sources now;
 # - the deploy validators (deploy/requirements.txt) in target/deploy-venv;
 # - the static (musl) server of deploy/Dockerfile, target/x86_64-unknown-linux-musl/dist/.
+#
+# Under .ci/run each part's wall time is logged (.ci/steps.sh, RELIEF_STEP_LOG).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-apt-get update
-apt-get install -y mesa-vulkan-drivers make chromium haproxy musl-tools python3-venv
-command -v node >/dev/null || apt-get install -y nodejs npm
-npm ci --prefix web
-bash web/build-wasm.sh --check
+source .ci/steps.sh
+apt() {
+    apt-get update
+    apt-get install -y mesa-vulkan-drivers make chromium haproxy musl-tools python3-venv
+    command -v node >/dev/null || apt-get install -y nodejs npm
+}
+step "setup: apt" apt
+step "setup: npm" npm ci --prefix web
+step "setup: wasm check" bash web/build-wasm.sh --check
 # A venv moved or copied with its target directory keeps the old paths in its scripts: rebuild
 # one whose validator does not start.
-if ! target/deploy-venv/bin/kubernetes-validate --version >/dev/null 2>&1; then
-    python3 -m venv --clear target/deploy-venv
-    target/deploy-venv/bin/pip install --quiet --requirement deploy/requirements.txt
-fi
-rustup target add x86_64-unknown-linux-musl
-cargo build --locked --profile dist --target x86_64-unknown-linux-musl -p relief-server
+venv() {
+    if ! target/deploy-venv/bin/kubernetes-validate --version >/dev/null 2>&1; then
+        python3 -m venv --clear target/deploy-venv
+        target/deploy-venv/bin/pip install --quiet --requirement deploy/requirements.txt
+    fi
+}
+step "setup: deploy venv" venv
+musl() {
+    rustup target add x86_64-unknown-linux-musl
+    cargo build --locked --profile dist --target x86_64-unknown-linux-musl -p relief-server
+}
+step "setup: musl server" musl

@@ -1,0 +1,82 @@
+# Step timing for CI and tests/setup.sh (sourced, not run).
+#
+#   step NAME COMMAND...    runs COMMAND, appends "NAME<TAB>SECONDS<TAB>EXIT" to $RELIEF_STEP_LOG
+#                           (when set) and returns COMMAND's exit status
+#   step_cargo_test NAME CARGO-ARGS...
+#                           runs `cargo CARGO-ARGS...` (a `cargo test`), passes its output through,
+#                           and logs the build as NAME and each test binary's run as
+#                           "NAME: BINARY"
+#   step_table              prints the logged steps as a table with their total
+#
+# Without RELIEF_STEP_LOG nothing is logged and the commands run as they would without this file.
+# Call `step` at the top level of a `set -e` script when COMMAND is a shell function: inside the
+# left operand of `||` bash ignores `set -e` in the function body too.
+
+step() {
+    local name=$1 t0 rc=0
+    shift
+    t0=$EPOCHREALTIME
+    # In the background, so that `set -e` still holds inside a shell function COMMAND (it does
+    # not in the left operand of `||`).
+    "$@" &
+    wait "$!" || rc=$?
+    _step_log "$name" "$t0" "$EPOCHREALTIME" "$rc"
+    return "$rc"
+}
+
+_step_log() {
+    [[ -n ${RELIEF_STEP_LOG:-} ]] || return 0
+    awk -v n="$1" -v a="$2" -v b="$3" -v rc="$4" \
+        'BEGIN { printf "%s\t%.1f\t%s\n", n, b - a, rc }' >>"$RELIEF_STEP_LOG"
+}
+
+# Each output line is stamped with the time it arrived, so that the build (up to the first
+# "Running" line) and each test binary (up to the next one) get their own wall time.
+step_cargo_test() {
+    local name=$1 t0 stamped rc=0
+    shift
+    t0=$EPOCHREALTIME
+    stamped=$(mktemp)
+    cargo "$@" 2>&1 | while IFS= read -r line; do
+        printf '%s\n' "$line"
+        printf '%s\t%s\n' "$EPOCHREALTIME" "$line" >>"$stamped"
+    done || rc=$?
+    # `cargo test` names a binary in its "Running" line (unit tests by source file, the
+    # integration tests by target) and a crate's doctests in its "Doc-tests" line.
+    if [[ -n ${RELIEF_STEP_LOG:-} ]]; then
+        awk -F '\t' -v n="$name" -v t0="$t0" -v end="$EPOCHREALTIME" -v rc="$rc" '
+            function close_one(t) {
+                if (cur != "") printf "%s: %s\t%.1f\t\n", n, cur, t - since
+            }
+            {
+                line = $2
+                sub(/^[ \t]+/, "", line)
+                if (line ~ /^Running / || line ~ /^Doc-tests /) {
+                    if (cur == "") printf "%s (build)\t%.1f\t\n", n, $1 - t0
+                    close_one($1)
+                    cur = line
+                    sub(/^Running /, "", cur)
+                    sub(/ \(.*\)$/, "", cur)
+                    since = $1
+                }
+            }
+            END {
+                if (cur == "") printf "%s (build)\t%.1f\t%s\n", n, end - t0, rc
+                else close_one(end)
+                printf "%s (all)\t%.1f\t%s\n", n, end - t0, rc
+            }' "$stamped" >>"$RELIEF_STEP_LOG"
+    fi
+    rm -f "$stamped"
+    return "$rc"
+}
+
+step_table() {
+    [[ -n ${RELIEF_STEP_LOG:-} && -s $RELIEF_STEP_LOG ]] || return 0
+    echo
+    echo "CI steps (wall time; exit status where not 0; '(all)' rows sum the rows above them):"
+    awk -F '\t' '
+        { printf "  %-64s %8.1f s %6s  %s\n", $1, $2, sprintf("%d:%02d", $2 / 60, $2 % 60), ($3 != "" && $3 != 0) ? "exit " $3 : "" }
+        $1 !~ /: / && $1 !~ /\(build\)$/ && $1 !~ /^setup: / { total += $2 }
+        END { printf "  %-64s %8.1f s %6s\n", "total", total, sprintf("%d:%02d", total / 60, total % 60) }
+    ' "$RELIEF_STEP_LOG"
+}
