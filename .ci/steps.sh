@@ -6,7 +6,8 @@
 #                           runs `cargo CARGO-ARGS...` (a `cargo test`), passes its output through,
 #                           and logs the build as NAME and each test binary's run as
 #                           "NAME: BINARY"
-#   step_table              prints the logged steps as a table with their total
+#   step_table T0           prints the logged steps as a table with their sum and the wall time
+#                           since T0
 #
 # Without RELIEF_STEP_LOG nothing is logged and the commands run as they would without this file.
 # Call `step` at the top level of a `set -e` script when COMMAND is a shell function: inside the
@@ -56,6 +57,9 @@ step_cargo_test() {
                     close_one($1)
                     cur = line
                     sub(/^Running /, "", cur)
+                    # Unit tests are named by source file alone: add the crate, from the binary.
+                    if (cur ~ /^unittests / && match(line, /deps\/[A-Za-z0-9_]+-/))
+                        cur = substr(line, RSTART + 5, RLENGTH - 6) " " cur
                     sub(/ \(.*\)$/, "", cur)
                     since = $1
                 }
@@ -70,13 +74,22 @@ step_cargo_test() {
     return "$rc"
 }
 
+# Prints the table; its last line is the wall time since T0 (seconds since the epoch, as
+# $EPOCHREALTIME gives them), which is less than the steps' sum where steps overlapped.
 step_table() {
+    local t0=$1
     [[ -n ${RELIEF_STEP_LOG:-} && -s $RELIEF_STEP_LOG ]] || return 0
     echo
     echo "CI steps (wall time; exit status where not 0; '(all)' rows sum the rows above them):"
-    awk -F '\t' '
-        { printf "  %-64s %8.1f s %6s  %s\n", $1, $2, sprintf("%d:%02d", $2 / 60, $2 % 60), ($3 != "" && $3 != 0) ? "exit " $3 : "" }
-        $1 !~ /: / && $1 !~ /\(build\)$/ && $1 !~ /^setup: / { total += $2 }
-        END { printf "  %-64s %8.1f s %6s\n", "total", total, sprintf("%d:%02d", total / 60, total % 60) }
+    awk -F '\t' -v t0="$t0" -v now="$EPOCHREALTIME" '
+        function row(name, s, note) {
+            printf "  %-60s %8.1f s %7s  %s\n", name, s, sprintf("%d:%02d", s / 60, s % 60), note
+        }
+        { row($1, $2, ($3 != "" && $3 != 0) ? "exit " $3 : "") }
+        $1 !~ /: / && $1 !~ /\(build\)$/ { total += $2 }
+        END {
+            row("sum of the steps", total, "")
+            row("wall, start to end", now - t0, "")
+        }
     ' "$RELIEF_STEP_LOG"
 }

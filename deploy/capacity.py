@@ -28,7 +28,7 @@ import random
 HERE = os.path.dirname(os.path.abspath(__file__))
 LOAD = os.path.join(HERE, "..", "docs", "load")
 
-# The scale-out drill's reconnect gaps (tests/tests/scale_out.rs, 200 sessions through HAProxy:
+# The scale-out drill's reconnect gaps (tests/tests/e2e/scale_out.rs, 200 sessions through HAProxy:
 # one replica of three killed, then a rolling restart), milliseconds: p50 and p99.
 GAP_P50_MS, GAP_P99_MS = 23.0, 55.0
 

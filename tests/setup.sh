@@ -10,6 +10,7 @@
 #   web/build-wasm.sh builds from the sources now;
 # - the deploy validators (deploy/requirements.txt) in target/deploy-venv;
 # - the static (musl) server of deploy/Dockerfile, target/x86_64-unknown-linux-musl/dist/.
+# Both go under CARGO_TARGET_DIR instead of target/ where that is set.
 #
 # Under .ci/run each part's wall time is logged (.ci/steps.sh, RELIEF_STEP_LOG).
 set -euo pipefail
@@ -26,9 +27,10 @@ step "setup: wasm check" bash web/build-wasm.sh --check
 # A venv moved or copied with its target directory keeps the old paths in its scripts: rebuild
 # one whose validator does not start.
 venv() {
-    if ! target/deploy-venv/bin/kubernetes-validate --version >/dev/null 2>&1; then
-        python3 -m venv --clear target/deploy-venv
-        target/deploy-venv/bin/pip install --quiet --requirement deploy/requirements.txt
+    local v=${CARGO_TARGET_DIR:-target}/deploy-venv
+    if ! "$v/bin/kubernetes-validate" --version >/dev/null 2>&1; then
+        python3 -m venv --clear "$v"
+        "$v/bin/pip" install --quiet --requirement deploy/requirements.txt
     fi
 }
 step "setup: deploy venv" venv

@@ -28,7 +28,15 @@ TARGET="${CARGO_TARGET_DIR:-target}"
 # No machine's paths in the module (panic locations of dependencies name their source files):
 # the same sources give the same bytes wherever they are built with the same toolchain.
 CARGO_HOME_DIR="${CARGO_HOME:-$HOME/.cargo}"
-export CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS="--remap-path-prefix=$CARGO_HOME_DIR=/cargo --remap-path-prefix=$PWD=/relief"
+REMAP="--remap-path-prefix=$CARGO_HOME_DIR=/cargo --remap-path-prefix=$PWD=/relief"
+# A target directory outside the repository (CARGO_TARGET_DIR, as CI's cache) is named as if it
+# were target/, where build scripts' generated sources would be; rustc applies the last match.
+TARGET_ABS="$(realpath -m "$TARGET")"
+case "$TARGET_ABS" in
+  "$PWD"/*) ;;
+  *) REMAP="$REMAP --remap-path-prefix=$TARGET_ABS=/relief/target" ;;
+esac
+export CARGO_TARGET_WASM32_UNKNOWN_UNKNOWN_RUSTFLAGS="$REMAP"
 cargo build --profile wasm -p relief-wasm --target wasm32-unknown-unknown
 TOOLCHAIN="$(rustc -V)"
 OUT=web/page/pkg

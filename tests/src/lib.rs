@@ -25,6 +25,21 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
+/// The repository's root.
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Cargo's target directory: `CARGO_TARGET_DIR` where it is set (CI keeps one outside the
+/// clone; a relative one is taken from the repository's root), `target/` of the repository
+/// otherwise.
+pub fn target_dir() -> PathBuf {
+    match std::env::var_os("CARGO_TARGET_DIR") {
+        Some(d) => repo().join(d),
+        None => repo().join("target"),
+    }
+}
+
 /// The store of the embedded crop, built once per test binary.
 pub fn test_store() -> &'static Path {
     static STORE: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();

@@ -23,7 +23,7 @@
 //! terrain's larger side, [`fog_distance`]), then the shader's sRGB encoding `c^(1/2.2)`, and
 //! the client's default sky ([`SKY_RGB8`]) where a ray hits nothing. The constants are
 //! duplicated, not shared: the WGSL holds them as literals, and the end-to-end test
-//! (`tests/tests/raycast_shot.rs`) checks that the shader's text still holds these values.
+//! (`tests/tests/e2e/raycast_shot.rs`) checks that the shader's text still holds these values.
 //! The height is the exact surface's (the renderer interpolates the LOD mesh's vertices). The
 //! normal is smooth, as the renderer's is, but of the full grid: each sample's normal by
 //! central differences, blended bilinearly over the hit's cell (the renderer blends the normals

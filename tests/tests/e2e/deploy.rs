@@ -5,21 +5,18 @@
 //! root under `chroot`, as the image's user, and serves.
 //!
 //! `tests/setup.sh` (the README's test command) installs the validators into
-//! `target/deploy-venv` and builds the static server; without them these tests fail and say so.
+//! `target/deploy-venv` (under `CARGO_TARGET_DIR` where that is set) and builds the static
+//! server; without them these tests fail and say so.
 
 use relief_server::serve::config::FileConfig;
-use relief_tests::free_addr;
+use relief_tests::{free_addr, repo, target_dir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
 /// A validator installed by tests/setup.sh.
 fn tool(name: &str) -> PathBuf {
-    let p = repo().join("target/deploy-venv/bin").join(name);
+    let p = target_dir().join("deploy-venv/bin").join(name);
     assert!(
         p.exists(),
         "{} is missing: run `bash tests/setup.sh` (the README's test command does)",
@@ -174,7 +171,7 @@ fn the_deployments_configuration_is_the_servers_and_agrees_between_them() {
 
 /// The static server tests/setup.sh builds.
 fn static_server() -> PathBuf {
-    let p = repo().join("target/x86_64-unknown-linux-musl/dist/relief-server");
+    let p = target_dir().join("x86_64-unknown-linux-musl/dist/relief-server");
     assert!(
         p.exists(),
         "{} is missing: run `bash tests/setup.sh` (the README's test command does)",

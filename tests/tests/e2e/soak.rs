@@ -10,7 +10,7 @@
 //! and fell by 3-5 % with the loop's period (one CI run failed at 5.02 %); with it, 2.0 %.
 //!
 //! Ignored in the plain test run (it takes three minutes and both cores); CI runs it:
-//! `cargo test --release -p relief-tests --test soak -- --ignored soak_`.
+//! `cargo test --release -p relief-tests --test e2e -- --ignored soak_`.
 
 use relief_client::load::soak::cycle::CycleShape;
 use relief_client::load::soak::{self, SoakOptions};

@@ -12,16 +12,12 @@
 //! `tests/setup.sh` installs HAProxy; without it this test fails and says so.
 
 use relief_client::chaos::{self, ChaosOptions, ChaosReport, Drill};
-use relief_tests::{ChildServer, free_addr};
+use relief_tests::{ChildServer, free_addr, repo};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_relief-test-server");
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
 
 /// The replicas, restartable in place.
 struct Replicas {

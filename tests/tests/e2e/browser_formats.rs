@@ -27,7 +27,7 @@ use relief_server::geo::GeoTransform;
 use relief_server::geo::tiling::{Scheme, TileXyz, cesium_level_error};
 use relief_server::store::Store;
 use relief_tests::shots::{assert_golden, bless, not_blank};
-use relief_tests::{ChildServer, free_addr, node_json, test_store};
+use relief_tests::{ChildServer, free_addr, node_json, repo, test_store};
 use serde_json::Value;
 use std::collections::{HashMap, HashSet};
 use std::net::SocketAddr;
@@ -37,14 +37,9 @@ use std::time::Duration;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 const BIN: &str = env!("CARGO_BIN_EXE_relief-test-server");
-const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
 
 /// One browser at a time: each is a few processes rendering WebGL in software.
 static BROWSER: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
-
-fn repo() -> PathBuf {
-    Path::new(REPO).to_path_buf()
-}
 
 fn node_modules() -> PathBuf {
     repo().join("web/node_modules")

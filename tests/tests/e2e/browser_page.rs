@@ -22,18 +22,13 @@
 use relief_server::serve::config::Limits;
 use relief_tests::http::{get, header};
 use relief_tests::shots::{assert_golden, bless, not_blank};
-use relief_tests::{ChildServer, TestServer, free_addr, node_json, serve_tiles_of};
+use relief_tests::{ChildServer, TestServer, free_addr, node_json, repo, serve_tiles_of};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 const BIN: &str = env!("CARGO_BIN_EXE_relief-test-server");
-const REPO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/..");
-
-fn repo() -> PathBuf {
-    Path::new(REPO).to_path_buf()
-}
 
 /// Fails, saying what to install, unless node, Chromium and playwright-core are there.
 fn prerequisites() {
