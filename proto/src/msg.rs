@@ -476,4 +476,44 @@ mod tests {
             .collect();
         assert_eq!(encode(&w), hex);
     }
+    /// Every place `docs/protocol.md` states the protocol version states this one: a client
+    /// written from the document must send what the server accepts (it said 3 in five places
+    /// while the server spoke 5, and such a client got `4001 version`).
+    #[test]
+    fn the_protocol_doc_states_this_version_everywhere() {
+        let doc = include_str!("../../docs/protocol.md");
+        // What precedes a version number where the document states one.
+        let cues = [
+            "version ",
+            "== ",
+            "must be ",
+            "is not ",
+            "version (",
+            "| number | ",
+            "PROTOCOL_VERSION = ",
+        ];
+        let mut stated = Vec::new();
+        for (i, line) in doc.lines().enumerate() {
+            // Other things' versions: the Prometheus text format's, in its content type.
+            if !line.contains("version") || line.contains("version=") {
+                continue;
+            }
+            for cue in cues {
+                for (at, _) in line.match_indices(cue) {
+                    let rest = &line[at + cue.len()..];
+                    let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
+                    if let Ok(v) = digits.parse::<u32>() {
+                        stated.push((i + 1, v));
+                    }
+                }
+            }
+        }
+        assert!(stated.len() >= 9, "too few statements found: {stated:?}");
+        for (line, v) in stated {
+            assert_eq!(
+                v, PROTOCOL_VERSION,
+                "docs/protocol.md line {line} says version {v}"
+            );
+        }
+    }
 }
