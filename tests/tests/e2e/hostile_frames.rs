@@ -7,6 +7,7 @@ use relief_server::serve::config::Limits;
 use relief_tests::bystander::{Bystander, assert_kept};
 use relief_tests::raw::{Closed, binary, frame, lo, read_close, ws_open};
 use relief_tests::{TestServer, hello};
+use std::sync::atomic::Ordering;
 use std::time::Duration;
 use tokio::io::AsyncWriteExt;
 
@@ -118,4 +119,41 @@ async fn a_stray_continuation_frame_closes_with_1002() {
         "nothing to continue",
     )
     .await;
+}
+
+/// A client that leaves without a close frame has dropped off the network (`docs/protocol.md`,
+/// section 10: reconnect and resume), which is no protocol error: connection churn once counted
+/// 1,759 such leavers under `relief_errors_total{kind="protocol"}`.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_client_that_leaves_without_a_close_frame_is_no_protocol_error() {
+    let server = TestServer::start(Limits::default()).await;
+    let leavers = 5;
+    for _ in 0..leavers {
+        let mut tcp = ws_open(lo(2), server.addr).await;
+        tcp.write_all(&binary(&hello())).await.unwrap();
+        tokio::time::sleep(Duration::from_millis(100)).await;
+        // A FIN where the close frame should have been.
+        tcp.shutdown().await.unwrap();
+    }
+    let state = server.state.clone();
+    let gone = async {
+        while state.metrics.sessions_active.load(Ordering::Relaxed) != 0 {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+    };
+    tokio::time::timeout(Duration::from_secs(10), gone)
+        .await
+        .expect("the leavers' sessions end");
+    let text = server.state.metrics.render();
+    let opened = format!("relief_sessions_total {leavers}");
+    assert!(text.contains(&opened), "{opened} missing:\n{text}");
+    let protocol_errors = text
+        .lines()
+        .find_map(|l| l.strip_prefix("relief_errors_total{kind=\"protocol\"} "))
+        .map_or(0, |v| v.trim().parse::<u64>().unwrap());
+    assert_eq!(
+        protocol_errors, 0,
+        "leavers counted as protocol errors:\n{text}"
+    );
+    server.stop().await;
 }

@@ -22,7 +22,8 @@ pub(super) fn fail<T>(
 
 /// The close for a socket error the client caused: a message over the size limit (1009), a
 /// text frame that is not UTF-8 (1007), or a frame that breaks RFC 6455 (1002). `None` for a
-/// connection that is simply gone, which nobody is left to tell.
+/// connection that is simply gone (reset, or ended without a close frame), which nobody is left
+/// to tell.
 fn client_fault(e: &(dyn StdError + 'static), state: &AppState) -> Option<(CloseReason, String)> {
     use tungstenite::Error as W;
     let mut cur = Some(e);
@@ -40,6 +41,12 @@ fn client_fault(e: &(dyn StdError + 'static), state: &AppState) -> Option<(Close
                     CloseReason::Malformed,
                     "a text frame is not valid UTF-8".into(),
                 )),
+                // A peer whose connection ends without a close frame has gone, as one whose
+                // socket reset has: a network failure (`docs/protocol.md`, section 10), not a
+                // frame that breaks RFC 6455.
+                W::Protocol(tungstenite::error::ProtocolError::ResetWithoutClosingHandshake) => {
+                    None
+                }
                 W::Protocol(p) => Some((CloseReason::Protocol, format!("{p}"))),
                 _ => None,
             };
