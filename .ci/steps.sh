@@ -2,9 +2,10 @@
 #
 #   step NAME COMMAND...    runs COMMAND, appends "NAME<TAB>SECONDS<TAB>EXIT" to $RELIEF_STEP_LOG
 #                           (when set) and returns COMMAND's exit status
-#   step_cargo_test NAME CARGO-ARGS...
-#                           runs `cargo CARGO-ARGS...` (a `cargo test`), passes its output through,
-#                           and logs the build as NAME and each test binary's run as
+#   step_tests NAME COMMAND...
+#                           runs COMMAND (one that ends in a `cargo test`), passes its output
+#                           through, and logs what comes before the first test binary (the
+#                           build) as "NAME (build)" and each test binary's run as
 #                           "NAME: BINARY"
 #   step_table T0           prints the logged steps as a table with their sum and the wall time
 #                           since T0
@@ -33,12 +34,12 @@ _step_log() {
 
 # Each output line is stamped with the time it arrived, so that the build (up to the first
 # "Running" line) and each test binary (up to the next one) get their own wall time.
-step_cargo_test() {
+step_tests() {
     local name=$1 t0 stamped rc=0
     shift
     t0=$EPOCHREALTIME
     stamped=$(mktemp)
-    cargo "$@" 2>&1 | while IFS= read -r line; do
+    "$@" 2>&1 | while IFS= read -r line; do
         printf '%s\n' "$line"
         printf '%s\t%s\n' "$EPOCHREALTIME" "$line" >>"$stamped"
     done || rc=$?
