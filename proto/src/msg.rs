@@ -516,4 +516,93 @@ mod tests {
             );
         }
     }
+
+    /// The hex bytes of `cell`, a table cell such as `` `03 72 71 74` ``.
+    fn cell_hex(cell: &str) -> Vec<u8> {
+        let inner = cell.split('`').nth(1).expect("a code span");
+        inner
+            .split_whitespace()
+            .map(|b| u8::from_str_radix(b, 16).expect("hex"))
+            .collect()
+    }
+
+    /// Section 2.1's examples of `String`, `Vec<f32>` and `f64`, against the codec (bincode's
+    /// derived encoding and the hand-written decoders of [`crate::codec`] alike).
+    #[test]
+    fn the_type_examples_of_the_protocol_doc_are_what_the_codec_writes() {
+        let doc = include_str!("../../docs/protocol.md");
+        let start = doc.find("### 2.1 Types").expect("2.1");
+        let end = doc.find("### 2.2 Varint").expect("2.2");
+        let section = &doc[start..end];
+        let row = |first: &str| -> &str {
+            section
+                .lines()
+                .find(|l| l.starts_with(&format!("| {first} |")))
+                .unwrap_or_else(|| panic!("the doc lacks the row {first:?}"))
+                .rsplit('|')
+                .nth(1)
+                .expect("a bytes cell")
+        };
+        let long = "a".repeat(300);
+        let texts: [(&str, &str); 2] = [("`String` `\"rqt\"`", "rqt"), ("`String` `\"é\"`", "é")];
+        for (first, text) in texts {
+            let want = cell_hex(row(first));
+            assert_eq!(encode(&text.to_string()), want, "{first}");
+            assert_eq!(decode::<String>(&want, 1 << 20).unwrap(), text);
+            // The hand-written decoder of refusals' and errors' texts reads the same bytes.
+            let refused = crate::query::BatchRefused {
+                id: 7,
+                reason: text.to_string(),
+            };
+            let mut bytes = vec![7];
+            bytes.extend_from_slice(&want);
+            assert_eq!(encode(&refused), bytes);
+            assert_eq!(
+                decode::<crate::query::BatchRefused>(&bytes, 1 << 20).unwrap(),
+                refused
+            );
+        }
+        let cell = row("`String` of 300 `a`s");
+        assert!(cell.contains("then 300 bytes `61`"), "{cell}");
+        let mut want = cell_hex(cell);
+        want.extend_from_slice(long.as_bytes());
+        assert_eq!(encode(&long), want);
+        assert_eq!(decode::<String>(&want, 1 << 20).unwrap(), long);
+        let floats: [(&str, Vec<f32>); 2] = [
+            ("`Vec<f32>` `[1.5, 0.25]`", vec![1.5, 0.25]),
+            ("`Vec<f32>` `[]`", vec![]),
+        ];
+        for (first, v) in floats {
+            let want = cell_hex(row(first));
+            assert_eq!(encode(&v), want, "{first}");
+            assert_eq!(decode::<Vec<f32>>(&want, 1 << 20).unwrap(), v);
+        }
+        assert_eq!(encode(&1.0f64), cell_hex(row("`f64` `1.0`")));
+        assert!(
+            decode::<String>(&[0x02, 0xC3, 0x28], 1 << 20).is_err(),
+            "not UTF-8"
+        );
+    }
+
+    /// Section 15.1's `TileSetInfo` example, alone and as a welcome's `tiles`.
+    #[test]
+    fn the_tile_set_example_of_the_protocol_doc_is_what_the_codec_writes() {
+        let info = TileSetInfo {
+            tile_size: 64,
+            depth: 2,
+            mesh: "rqt".into(),
+            level_errors: vec![1.5, 0.25, 0.0],
+        };
+        let doc = include_str!("../../docs/protocol.md");
+        let start = doc.find("### 15.1 The pyramid").expect("15.1");
+        let cue = "`level_errors = [1.5, 0.25, 0.0]` is";
+        let at = start + doc[start..].find(cue).expect("the example");
+        let want = cell_hex(&doc[at + cue.len()..]);
+        assert_eq!(encode(&info), want);
+        assert_eq!(decode::<TileSetInfo>(&want, 1 << 20).unwrap(), info);
+        assert!(doc[at..].contains(&format!("({} bytes;", want.len())));
+        let mut some = vec![1];
+        some.extend_from_slice(&want);
+        assert_eq!(encode(&Some(info)), some);
+    }
 }

@@ -27,6 +27,8 @@ pub struct Latency {
     pub median_ms: f64,
     /// 90th percentile.
     pub p90_ms: f64,
+    /// 99th percentile.
+    pub p99_ms: f64,
     /// Largest.
     pub max_ms: f64,
 }
@@ -44,6 +46,7 @@ impl Latency {
             n: ms.len(),
             median_ms: at(0.5).unwrap_or(f64::NAN),
             p90_ms: at(0.9).unwrap_or(f64::NAN),
+            p99_ms: at(0.99).unwrap_or(f64::NAN),
             max_ms: ms.last().copied().unwrap_or(f64::NAN),
         }
     }
@@ -53,9 +56,12 @@ impl Bystander {
     /// Connects to `url` and flies path `which` (see [`crate::path`]) in a loop, a pose every
     /// 20 ms after the previous was answered.
     pub async fn start(url: &str, which: usize) -> Bystander {
-        let mut s = Session::connect(SessionConfig::new(url))
-            .await
-            .expect("bystander connects");
+        Self::start_with(SessionConfig::new(url), which, Duration::from_millis(20)).await
+    }
+
+    /// A bystander with `config`, a pose every `gap` after the previous was answered.
+    pub async fn start_with(config: SessionConfig, which: usize, gap: Duration) -> Bystander {
+        let mut s = Session::connect(config).await.expect("bystander connects");
         let latencies = Arc::new(Mutex::new(Vec::new()));
         let stop = Arc::new(AtomicBool::new(false));
         let cams = crate::path(which, 120);
@@ -70,7 +76,7 @@ impl Bystander {
                     let seq = s.send_pose(*cam).await.expect("bystander pose");
                     s.wait_for_pose(seq).await.expect("bystander delta");
                     latencies.lock().await.push(t.elapsed());
-                    tokio::time::sleep(Duration::from_millis(20)).await;
+                    tokio::time::sleep(gap).await;
                 }
                 s.counters()
             }

@@ -61,6 +61,7 @@ pub fn config(limits: Limits) -> ServeConfig {
         cache_dir: std::env::temp_dir().join("relief-test-cache"),
         limits,
         web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
+        public_url: None,
     }
 }
 
@@ -343,6 +344,7 @@ pub async fn serve_tiles_of(
         cache_dir: dir.path().join("cache"),
         limits: Limits::default(),
         web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
+        public_url: None,
     })
     .await;
     (dir, server)

@@ -4,7 +4,7 @@
 
 use std::net::{IpAddr, SocketAddr};
 use std::time::Duration;
-use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::io::{AsyncRead, AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpSocket, TcpStream};
 
 /// A TCP connection to `server` from `from` (any 127.0.0.0/8 address works on Linux, so tests
@@ -86,13 +86,13 @@ pub enum Closed {
 }
 
 /// Reads server frames until a close frame (binary frames are skipped), within 20 s.
-pub async fn read_close(tcp: &mut TcpStream) -> Closed {
+pub async fn read_close(tcp: &mut (impl AsyncRead + Unpin)) -> Closed {
     read_close_or(tcp, usize::MAX).await
 }
 
 /// Reads server frames until a close frame, or until `data` data frames came ([`Closed::Open`]),
 /// within 20 s.
-pub async fn read_close_or(tcp: &mut TcpStream, data: usize) -> Closed {
+pub async fn read_close_or(tcp: &mut (impl AsyncRead + Unpin), data: usize) -> Closed {
     let mut seen = 0;
     let read = async {
         loop {

@@ -9,7 +9,7 @@ use relief_proto::query::{Answer, Fault, Query, RayHit};
 pub fn fault(e: &QueryError) -> Answer {
     let fault = match e {
         QueryError::NotFinite => Fault::NotFinite,
-        QueryError::Outside { .. } => Fault::Outside,
+        QueryError::Outside { .. } | QueryError::OutOfReach(_) => Fault::Outside,
         QueryError::ZeroDirection => Fault::ZeroDirection,
         QueryError::Negative(_) => Fault::Negative,
         // A grid that cannot be queried never becomes a served terrain.
@@ -17,8 +17,25 @@ pub fn fault(e: &QueryError) -> Answer {
     };
     Answer::Error {
         fault,
-        message: e.to_string(),
+        message: clip(e.to_string()),
     }
+}
+
+/// Longest error message in an answer, bytes: a message can quote what the client sent, and an
+/// answer must stay about the size of its query, not of the client's text.
+pub const MAX_ANSWER_MESSAGE: usize = 96;
+
+/// `s` cut to [`MAX_ANSWER_MESSAGE`] bytes (at a character boundary, with an ellipsis).
+pub fn clip(mut s: String) -> String {
+    if s.len() > MAX_ANSWER_MESSAGE {
+        let mut end = MAX_ANSWER_MESSAGE - '…'.len_utf8();
+        while !s.is_char_boundary(end) {
+            end -= 1;
+        }
+        s.truncate(end);
+        s.push('…');
+    }
+    s
 }
 
 /// The unit normal as the wire carries it.
@@ -106,6 +123,39 @@ impl Terrain {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_full_batch_of_the_longest_answers_fits_in_one_message() {
+        // Every answer kind at its largest: an error with the longest message, a ray hit with
+        // the widest cell, a blocked line of sight. A batch of the most queries of the longest
+        // answer stays under the codec's limit, so answers need never be split.
+        let longest = [
+            Answer::Error {
+                fault: Fault::Malformed,
+                message: clip("é".repeat(200)),
+            },
+            Answer::Ray(Some(RayHit {
+                point: [f64::MAX; 3],
+                distance: f64::MAX,
+                normal: [1.0; 3],
+                cell: [u32::MAX; 2],
+            })),
+        ];
+        for a in longest {
+            let batch = relief_proto::query::AnswerBatch {
+                id: u64::MAX,
+                answers: vec![a.clone(); relief_proto::query::MAX_BATCH],
+            };
+            let n = relief_proto::codec::encode(&batch).len();
+            assert!(n <= relief_proto::codec::HARD_LIMIT, "{n} bytes of {a:?}");
+        }
+        // A message of numbers the client chose stays short too.
+        let e = QueryError::Outside {
+            x: -1.797e308,
+            y: f64::MIN_POSITIVE,
+        };
+        assert!(e.to_string().len() < 80, "{e}");
+    }
 
     fn ramp() -> Terrain {
         // 5 x 5 samples 10 m apart, rising 1 m per metre east: z = x.

@@ -42,6 +42,8 @@ impl Terrain {
         if clearance < 0.0 {
             return Err(QueryError::Negative(clearance));
         }
+        self.check_reach(a, "the line's start")?;
+        self.check_reach(b, "the line's end")?;
         let dir = b - a;
         if dir == DVec3::ZERO {
             // A point: blocked where it is within the clearance of the ground under it.

@@ -43,6 +43,7 @@ pub mod view;
 #[cfg(test)]
 mod tests;
 
+use glam::DVec3;
 pub use hat::HatHot;
 pub use los::Sight;
 pub use pyramid::Pyramid;
@@ -56,7 +57,7 @@ pub enum QueryError {
     #[error("a coordinate is not a finite number")]
     NotFinite,
     /// The point lies outside the terrain's extent.
-    #[error("point ({x}, {y}) lies outside the terrain")]
+    #[error("point ({}, {}) lies outside the terrain", Short(*x), Short(*y))]
     Outside {
         /// World x, metres.
         x: f64,
@@ -67,12 +68,38 @@ pub enum QueryError {
     #[error("the ray's direction is zero")]
     ZeroDirection,
     /// A maximum distance or a clearance is negative.
-    #[error("distance or clearance {0} m is negative")]
+    #[error("distance or clearance {} m is negative", Short(*.0))]
     Negative(f64),
+    /// A ray's origin or a sight line's end lies farther from the terrain than
+    /// [`QUERY_REACH_M`], where `f64` can no longer place it to the metre.
+    #[error("{0} lies more than 1e6 m from the terrain")]
+    OutOfReach(&'static str),
     /// The grid cannot be queried: fewer than 2 x 2 samples, a non-positive spacing, a height
     /// that is not finite, or heights that do not match the size.
     #[error("cannot query this grid: {0}")]
     BadGrid(&'static str),
+}
+
+/// How far beyond the terrain's extent, and above or below its highest or lowest point, a ray's
+/// origin or a sight line's end may be, metres: as far as a session's camera may be. Farther,
+/// the grid coordinates lose the precision the answers need (at 1e16 m a ray's hit was 1.1 m
+/// off; at 1e100 every coordinate rounds to one value).
+pub const QUERY_REACH_M: f64 = 1.0e6;
+
+/// A number in a message: as written when it is of ordinary size, in scientific notation when
+/// not, so that a message stays short whatever the client sent (an `f64` written out in full
+/// can take 300 digits).
+pub struct Short(pub f64);
+
+impl std::fmt::Display for Short {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let a = self.0.abs();
+        if a == 0.0 || (1e-6..1e9).contains(&a) || !a.is_finite() {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
 }
 
 /// A terrain ready for queries: its heights and its pyramids.
@@ -91,6 +118,8 @@ pub struct Terrain {
     z: Vec<f32>,
     /// The max-mip and min-mip pyramids over the cells.
     pyramid: Pyramid,
+    /// The largest absolute height, metres: the vertical reach is measured from it.
+    z_abs_max: f64,
 }
 
 impl Terrain {
@@ -119,6 +148,7 @@ impl Terrain {
         let w = width as usize;
         let z: Vec<f32> = heights.chunks_exact(w).rev().flatten().copied().collect();
         let pyramid = Pyramid::build(&z, width, height);
+        let z_abs_max = f64::from(z.iter().fold(0f32, |m, h| m.max(h.abs())));
         Ok(Terrain {
             width,
             height,
@@ -126,7 +156,23 @@ impl Terrain {
             dy,
             z,
             pyramid,
+            z_abs_max,
         })
+    }
+
+    /// Checks that `p` (a ray's origin, a sight line's end, named `what`) lies within
+    /// [`QUERY_REACH_M`] of the terrain.
+    pub fn check_reach(&self, p: DVec3, what: &'static str) -> Result<(), QueryError> {
+        let (w, h) = self.extent();
+        let r = QUERY_REACH_M;
+        let inside = (-r..=w + r).contains(&p.x)
+            && (-r..=h + r).contains(&p.y)
+            && p.z.abs() <= self.z_abs_max + r;
+        if inside {
+            Ok(())
+        } else {
+            Err(QueryError::OutOfReach(what))
+        }
     }
 
     /// The terrain of a store: its heights as stored (within half a z quantum of the source).

@@ -155,6 +155,7 @@ impl GridRay {
         if ray.max_dist < 0.0 {
             return Err(QueryError::Negative(ray.max_dist));
         }
+        terrain.check_reach(ray.origin, "the ray's origin")?;
         let big = ray.dir.abs().max_element();
         if big == 0.0 {
             return Err(QueryError::ZeroDirection);

@@ -14,7 +14,7 @@
 //! in a computation slot, off the async threads. A terrain without a georeference answers 404
 //! with the reason; a malformed z/x/y gets 400, a tile outside the terrain or too deep 404.
 
-use super::http::{ApiError, MAX_AGE_S, not_modified};
+use super::http::{ApiError, ApiQuery, MAX_AGE_S, not_modified};
 use super::metrics::ErrorKind;
 use super::state::{AppState, Terrain};
 use crate::formats::cesium::tile_mesh;
@@ -24,7 +24,7 @@ use crate::formats::sampler::Resampler;
 use crate::formats::terrain_rgb::Encoding;
 use crate::geo::tiling::{MAX_LEVEL, TileXyz};
 use axum::Json;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
@@ -73,22 +73,18 @@ fn address(
     Ok((TileXyz { z: z as u8, x, y }, which))
 }
 
-/// Runs `work` (a tile's making) in a computation slot, off the async threads.
+/// Runs `work` (a tile's making) on the background pool, off the async threads.
 async fn compute<T: Send + 'static>(
     state: &AppState,
     work: impl FnOnce() -> Result<T, String> + Send + 'static,
 ) -> Result<T, ApiError> {
-    let _slot = state
-        .one_shots
-        .acquire()
-        .await
-        .map_err(|_| ApiError::NotReady)?;
-    match tokio::task::spawn_blocking(work).await {
+    match state.background.run(work).await {
         Ok(Ok(v)) => Ok(v),
         Ok(Err(e)) => {
             tracing::warn!("tile failed: {e}");
             Err(ApiError::Internal)
         }
+        Err(super::pool::PoolError::Stopping) => Err(ApiError::NotReady),
         Err(_) => Err(ApiError::Internal),
     }
 }
@@ -228,7 +224,7 @@ fn raster_layer(t: &Terrain, size: u32) -> Result<&RasterLayer, ApiError> {
 pub async fn tilejson(
     State(state): State<Arc<AppState>>,
     Path(file): Path<String>,
-    Query(q): Query<TileJsonQuery>,
+    ApiQuery(q): ApiQuery<TileJsonQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let t = georeferenced(&state)?;
@@ -242,23 +238,54 @@ pub async fn tilejson(
         )));
     }
     let layer = raster_layer(&t, size)?;
-    // Tile URLs are absolute, on the host (and scheme, behind a proxy) the client used.
-    let host = headers
-        .get(header::HOST)
-        .and_then(|v| v.to_str().ok())
-        .unwrap_or("localhost");
-    let scheme = headers
-        .get("x-forwarded-proto")
-        .and_then(|v| v.to_str().ok())
-        .filter(|s| *s == "https")
-        .unwrap_or("http");
+    // Tile URLs are absolute (MapLibre does not resolve relative ones): on the configured
+    // public URL, else on the host (and scheme, behind a proxy) the client used.
+    let base = match &state.public_url {
+        Some(u) => u.clone(),
+        None => {
+            let host = headers
+                .get(header::HOST)
+                .and_then(|v| v.to_str().ok())
+                .unwrap_or("localhost");
+            if !valid_host(host) {
+                state.metrics.error(ErrorKind::BadRequest);
+                return Err(ApiError::BadRequest(
+                    "the Host header is not a host name with an optional port".into(),
+                ));
+            }
+            let scheme = headers
+                .get("x-forwarded-proto")
+                .and_then(|v| v.to_str().ok())
+                .filter(|s| *s == "https")
+                .unwrap_or("http");
+            format!("{scheme}://{host}")
+        }
+    };
     let suffix = if size == 512 { "@2x" } else { "" };
     let url = format!(
-        "{scheme}://{host}/tiles/{}/{{z}}/{{x}}/{{y}}{suffix}.png?v={:016x}",
+        "{base}/tiles/{}/{{z}}/{{x}}/{{y}}{suffix}.png?v={:016x}",
         enc.name(),
         t.info.id
     );
-    Ok(Json(layer.tilejson(enc, &url)).into_response())
+    let mut r = Json(layer.tilejson(enc, &url)).into_response();
+    if state.public_url.is_none() {
+        // The body depends on these headers: a shared cache keys it by them too, so that one
+        // client's Host never reaches another's copy.
+        r.headers_mut().insert(
+            header::VARY,
+            header::HeaderValue::from_static("host, x-forwarded-proto"),
+        );
+    }
+    Ok(r)
+}
+
+/// Whether `h` is a host name or IP address with an optional port, as a Host header holds:
+/// letters, digits, `-`, `.`, `:`, `[`, `]`, at most 255 bytes.
+fn valid_host(h: &str) -> bool {
+    !h.is_empty()
+        && h.len() <= 255
+        && h.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'-' | b'.' | b':' | b'[' | b']'))
 }
 
 /// `GET /tiles/{encoding}/{z}/{x}/{y}.png` (256 pixels) or `{y}@2x.png` (512).

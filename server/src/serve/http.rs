@@ -52,6 +52,12 @@ pub enum ApiError {
     /// The client's address is at a limit.
     #[error("{0}")]
     TooMany(String),
+    /// The request's credentials are wrong.
+    #[error("{0}")]
+    Unauthorized(String),
+    /// The request's target is longer than the server reads.
+    #[error("{0}")]
+    UriTooLong(String),
     /// A server fault (details are logged, not sent).
     #[error("internal error")]
     Internal,
@@ -67,6 +73,8 @@ impl IntoResponse for ApiError {
             ApiError::TooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::Unavailable(_) => StatusCode::SERVICE_UNAVAILABLE,
             ApiError::TooMany(_) => StatusCode::TOO_MANY_REQUESTS,
+            ApiError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
+            ApiError::UriTooLong(_) => StatusCode::URI_TOO_LONG,
             ApiError::Internal => StatusCode::INTERNAL_SERVER_ERROR,
         };
         (
@@ -75,6 +83,47 @@ impl IntoResponse for ApiError {
         )
             .into_response()
     }
+}
+
+/// A query string, refused with a JSON [`ApiError`] (400) naming the parameter, where axum's
+/// own extractor answers in plain text.
+pub struct ApiQuery<T>(pub T);
+
+impl<T, S> axum::extract::FromRequestParts<S> for ApiQuery<T>
+where
+    T: serde::de::DeserializeOwned,
+    S: Send + Sync,
+{
+    type Rejection = ApiError;
+
+    async fn from_request_parts(
+        parts: &mut axum::http::request::Parts,
+        state: &S,
+    ) -> Result<Self, ApiError> {
+        match axum::extract::Query::<T>::from_request_parts(parts, state).await {
+            Ok(axum::extract::Query(v)) => Ok(ApiQuery(v)),
+            Err(e) => Err(ApiError::BadRequest(format!(
+                "bad query string: {}",
+                e.body_text()
+                    .trim_start_matches("Failed to deserialize query string: ")
+            ))),
+        }
+    }
+}
+
+/// Longest request target (path and query) the server reads, bytes; longer ones get 414.
+pub const MAX_URI_BYTES: usize = 8192;
+
+/// Refuses a request whose target is longer than [`MAX_URI_BYTES`] with a JSON 414.
+pub async fn uri_limit(req: axum::extract::Request, next: axum::middleware::Next) -> Response {
+    let len = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
+    if len > MAX_URI_BYTES {
+        return ApiError::UriTooLong(format!(
+            "the request target is {len} bytes; at most {MAX_URI_BYTES}"
+        ))
+        .into_response();
+    }
+    next.run(req).await
 }
 
 /// How long clients and caches may keep a tile without asking again, seconds.
@@ -102,6 +151,15 @@ pub fn not_modified(headers: &HeaderMap, etag: &str) -> Option<Response> {
     })
 }
 
+/// The answer when the background pool gave no result: the server is stopping, or the
+/// computation failed (logged where it happened).
+pub(super) fn background_failed(e: super::pool::PoolError) -> ApiError {
+    match e {
+        super::pool::PoolError::Stopping => ApiError::NotReady,
+        super::pool::PoolError::Panicked => ApiError::Internal,
+    }
+}
+
 pub(super) fn ready(state: &AppState) -> Result<Arc<Terrain>, ApiError> {
     state.terrain().ok_or(ApiError::NotReady)
 }
@@ -114,6 +172,15 @@ pub(super) async fn read_body(
     max: usize,
 ) -> Result<axum::body::Bytes, ApiError> {
     let limit = state.limits.body_timeout;
+    // A body declared larger than the endpoint takes is refused before any of it is read, so
+    // an `Expect: 100-continue` client is never told to send it.
+    let declared = axum::body::HttpBody::size_hint(&body).lower();
+    if declared > max as u64 {
+        state.metrics.error(super::metrics::ErrorKind::BadRequest);
+        return Err(ApiError::TooLarge(format!(
+            "the request body of {declared} bytes is larger than {max} bytes"
+        )));
+    }
     match tokio::time::timeout(limit, axum::body::to_bytes(body, max)).await {
         Err(_) => {
             state.metrics.error(super::metrics::ErrorKind::BodyTimeout);
@@ -169,15 +236,15 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
         state.metrics.error(super::metrics::ErrorKind::BadRequest);
         ApiError::BadRequest(e)
     };
-    // The body first, within the body timeout; then a computation slot. A slow body holds
+    // The body first, within the body timeout; then a background slot. A slow body holds
     // no slot, and a waiting request holds at most one message.
     let body = read_body(&state, body, state.limits.max_message_bytes as usize).await?;
-    let _slot = state
-        .one_shots
-        .acquire()
+    let max = state.limits.max_message_bytes as usize;
+    let req: LodRequest = state
+        .background
+        .run(move || codec::decode(&body, max))
         .await
-        .map_err(|_| ApiError::NotReady)?;
-    let req: LodRequest = codec::decode(&body, state.limits.max_message_bytes as usize)
+        .map_err(background_failed)?
         .map_err(|e| bad(e.to_string()))?;
     if req.version != PROTOCOL_VERSION {
         return Err(bad(format!(
@@ -197,7 +264,7 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
     }
     let max_nodes = state.limits.max_cut_nodes as usize;
     let st = state.clone();
-    let work = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
+    let work = state.background.run(move || -> Result<Vec<u8>, String> {
         let started = Instant::now();
         let engine = VertexEngine::new(&t.store);
         let shape = &engine.geometry().shape;
@@ -237,13 +304,7 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
         st.metrics.observe_update(started.elapsed().as_secs_f64());
         Ok(codec::encode(&resp))
     });
-    let bytes = work
-        .await
-        .map_err(|e| {
-            tracing::error!("one-shot update failed: {e}");
-            ApiError::Internal
-        })?
-        .map_err(bad)?;
+    let bytes = work.await.map_err(background_failed)?.map_err(bad)?;
     state
         .metrics
         .bytes_out_total
@@ -276,34 +337,68 @@ pub async fn heights(State(state): State<Arc<AppState>>, body: Body) -> Result<R
         state.metrics.error(super::metrics::ErrorKind::BadRequest);
         ApiError::BadRequest(e)
     };
-    let req: HeightsRequest = serde_json::from_slice(&body)
-        .map_err(|e| bad(format!("the body is not a heights request: {e}")))?;
-    if req.points.len() > MAX_HEIGHT_POINTS {
-        return Err(bad(format!(
-            "{} points requested; at most {MAX_HEIGHT_POINTS} per request",
-            req.points.len()
-        )));
-    }
-    let g = t.store.geometry();
-    let (w, h) = (g.shape.width(), g.shape.height());
-    let out: Vec<Option<f32>> = req
-        .points
-        .iter()
-        .map(|&[x, y]| {
-            let (c, r) = g.frame.to_grid(x as f32, y as f32);
-            let (c, r) = (c.round(), r.round());
-            if !(c >= 0.0 && r >= 0.0 && c < w as f32 && r < h as f32) {
-                return None;
+    // Parsing and writing up to 3 MB of JSON take milliseconds: on the background pool, not
+    // on an async worker that other connections share.
+    let json = state
+        .background
+        .run(move || -> Result<Vec<u8>, String> {
+            let req: HeightsRequest = serde_json::from_slice(&body)
+                .map_err(|e| format!("the body is not a heights request: {e}"))?;
+            if req.points.len() > MAX_HEIGHT_POINTS {
+                return Err(format!(
+                    "{} points requested; at most {MAX_HEIGHT_POINTS} per request",
+                    req.points.len()
+                ));
             }
-            Some(t.store.sample_z(c as u32, r as u32) as f32 * g.z_quantum)
+            let g = t.store.geometry();
+            let (w, h) = (g.shape.width(), g.shape.height());
+            let out: Vec<Option<f32>> = req
+                .points
+                .iter()
+                .map(|&[x, y]| {
+                    let (c, r) = g.frame.to_grid(x as f32, y as f32);
+                    let (c, r) = (c.round(), r.round());
+                    if !(c >= 0.0 && r >= 0.0 && c < w as f32 && r < h as f32) {
+                        return None;
+                    }
+                    Some(t.store.sample_z(c as u32, r as u32) as f32 * g.z_quantum)
+                })
+                .collect();
+            serde_json::to_vec(&serde_json::json!({ "heights": out })).map_err(|e| e.to_string())
         })
-        .collect();
-    Ok(Json(serde_json::json!({ "heights": out })).into_response())
+        .await
+        .map_err(background_failed)?
+        .map_err(bad)?;
+    Ok(([(header::CONTENT_TYPE, "application/json")], json).into_response())
 }
 
-/// `GET /v1/sessions`: the open sessions as JSON.
-pub async fn sessions(State(state): State<Arc<AppState>>) -> Response {
-    Json(state.session_reports()).into_response()
+/// `GET /v1/sessions`: the open sessions as JSON. Clients' addresses are personal data: they
+/// are listed only for a request with `Authorization: Bearer <operator token>`, and a request
+/// with a wrong token is refused (401).
+pub async fn sessions(
+    State(state): State<Arc<AppState>>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let with_peers = match headers.get(header::AUTHORIZATION) {
+        None => false,
+        Some(v) => {
+            let given = v.to_str().ok().and_then(|v| v.strip_prefix("Bearer "));
+            match (&state.limits.operator_token, given) {
+                (Some(t), Some(g)) if constant_time_eq(t.0.as_bytes(), g.trim().as_bytes()) => true,
+                _ => {
+                    return Err(ApiError::Unauthorized(
+                        "the bearer token is not the server's operator token".into(),
+                    ));
+                }
+            }
+        }
+    };
+    Ok(Json(state.session_reports(with_peers)).into_response())
+}
+
+/// Compares two secrets in a time that does not depend on where they first differ.
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
 /// `GET /metrics`: Prometheus text.

@@ -16,6 +16,7 @@
 use super::limits::{IpBuckets, Refusal, SlotPermit};
 use super::metrics::ErrorKind;
 use super::router::{app, overflow_app};
+use super::stall::{StallIo, WriteStall};
 use super::state::AppState;
 use axum::extract::ConnectInfo;
 use hyper::body::Incoming;
@@ -77,6 +78,46 @@ pub fn fit_connections(wanted: u32) -> u32 {
         fit as u32
     } else {
         wanted
+    }
+}
+
+/// Requests of one connection being answered, from their headers to the last byte of the
+/// response, so that the drain waits for those and for nothing else.
+#[derive(Clone, Default)]
+struct Busy(Arc<AtomicUsize>);
+
+/// Decrements a [`Busy`] count when dropped.
+struct BusyGuard(Arc<AtomicUsize>);
+
+impl Drop for BusyGuard {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Relaxed);
+    }
+}
+
+impl Busy {
+    /// Whether a request is being answered.
+    fn any(&self) -> bool {
+        self.0.load(Relaxed) > 0
+    }
+
+    /// Answers `req` with `router`, counted until the response's body is dropped (written in
+    /// full, or abandoned).
+    async fn serve(
+        self,
+        router: axum::Router,
+        req: hyper::Request<Incoming>,
+    ) -> Result<axum::response::Response, std::convert::Infallible> {
+        use http_body_util::BodyExt;
+        self.0.fetch_add(1, Relaxed);
+        let guard = BusyGuard(self.0.clone());
+        let res = router.oneshot(req).await?;
+        Ok(res.map(move |b| {
+            axum::body::Body::new(b.map_frame(move |f| {
+                let _held = &guard;
+                f
+            }))
+        }))
     }
 }
 
@@ -177,15 +218,20 @@ pub async fn serve(
         };
         let router = router.clone();
         let conn_slot = slot.clone();
+        let stall = WriteStall::new(state.limits.write_timeout);
+        let conn_stall = stall.clone();
+        let busy = Busy::default();
+        let conn_busy = busy.clone();
         let svc = hyper::service::service_fn(move |mut req: hyper::Request<Incoming>| {
             req.extensions_mut().insert(ConnectInfo::<SocketAddr>(peer));
             req.extensions_mut().insert(conn_slot.clone());
-            router.clone().oneshot(req)
+            req.extensions_mut().insert(conn_stall.clone());
+            conn_busy.clone().serve(router.clone(), req)
         });
         let conn = http1::Builder::new()
             .timer(TokioTimer::new())
             .header_read_timeout(state.limits.header_timeout)
-            .serve_connection(TokioIo::new(tcp), svc)
+            .serve_connection(TokioIo::new(StallIo::new(tcp, stall)), svc)
             .with_upgrades();
         let guard = live.enter();
         let mut stop = stop.clone();
@@ -198,7 +244,18 @@ pub async fn serve(
                 r = conn.as_mut() => r,
                 _ = async { stop.wait_for(|d| *d).await.map(|_| ()) } => {
                     conn.as_mut().graceful_shutdown();
-                    conn.await
+                    // A request being answered is finished; a connection between requests,
+                    // or still sending its headers, is closed at once.
+                    loop {
+                        tokio::select! {
+                            r = conn.as_mut() => break r,
+                            _ = tokio::time::sleep(Duration::from_millis(20)) => {
+                                if !busy.any() {
+                                    break Ok(());
+                                }
+                            }
+                        }
+                    }
                 }
             };
             if let Err(e) = result {

@@ -24,15 +24,19 @@ pub enum ErrorKind {
     ConnectionLimit,
     /// A request body did not arrive within the body timeout.
     BodyTimeout,
+    /// A query batch was refused because its answer would pass the memory budget (sessions
+    /// closed for it count as `server_full` closes).
+    MemoryBudget,
 }
 
 impl ErrorKind {
-    const ALL: [ErrorKind; 5] = [
+    const ALL: [ErrorKind; 6] = [
         ErrorKind::BadRequest,
         ErrorKind::RateLimited,
         ErrorKind::Connection,
         ErrorKind::ConnectionLimit,
         ErrorKind::BodyTimeout,
+        ErrorKind::MemoryBudget,
     ];
 
     fn name(self) -> &'static str {
@@ -42,6 +46,7 @@ impl ErrorKind {
             ErrorKind::Connection => "connection",
             ErrorKind::ConnectionLimit => "connection_limit",
             ErrorKind::BodyTimeout => "body_timeout",
+            ErrorKind::MemoryBudget => "memory_budget",
         }
     }
 }

@@ -14,6 +14,8 @@
 //! - [`query`]: terrain queries over HTTP (`POST /v1/query`), and the batch computation
 //!   query sessions share.
 //! - [`raycast`]: `/v1/raycast.png`, a ray-cast picture of a camera's view.
+//! - [`pool`]: the background threads, at a lower priority, that run long computations apart
+//!   from the sessions' updates.
 //! - [`ws`]: the WebSocket upgrade and session admission.
 //! - [`session`]: one session's protocol (hello, welcome, flow, closes), generic over
 //!   `Sink + Stream`.
@@ -21,6 +23,7 @@
 //! - [`validate`]: checks of client-supplied lenses, cameras and parameters.
 //! - [`limits`]: session counts per server and per address, and the connection rate.
 //! - [`metrics`]: counters and the Prometheus exposition.
+//! - [`stall`]: the write timeout of HTTP connections.
 //! - [`listen`]: the accept loop with the header timeout, and the drain.
 
 pub mod config;
@@ -30,11 +33,13 @@ pub mod limits;
 pub mod listen;
 pub mod metrics;
 pub mod pages;
+pub mod pool;
 pub mod query;
 pub mod raycast;
 pub mod router;
 pub mod session;
 pub mod source;
+pub mod stall;
 pub mod state;
 pub mod stream;
 pub mod tiles;
@@ -92,7 +97,11 @@ impl Server {
         limits.max_connections = listen::fit_connections(limits.max_connections);
         Ok(Server {
             listener,
-            state: Arc::new(AppState::new(limits, rx).with_web_lib(config.web_lib.clone())),
+            state: Arc::new(
+                AppState::new(limits, rx)
+                    .with_web_lib(config.web_lib.clone())
+                    .with_public_url(config.public_url.clone()),
+            ),
             draining,
             config,
         })

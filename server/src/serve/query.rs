@@ -1,12 +1,11 @@
 //! Terrain queries over HTTP (`POST /v1/query`, JSON or binary by content type) and the
 //! computation both it and query sessions ([`super::session`]) run: a batch checked against the
-//! limits, then answered item by item by [`crate::query::Terrain::answer_all`], on a blocking
-//! thread holding a computation slot unless it is small.
+//! limits, then answered item by item by [`crate::query::Terrain::answer_all`], on the background
+//! pool ([`super::pool`]) unless it is small.
 
 use super::http::{ApiError, BINARY, read_body, ready};
 use super::metrics::ErrorKind;
 use super::state::{AppState, Terrain};
-use axum::Json;
 use axum::body::Body;
 use axum::extract::State;
 use axum::http::{HeaderMap, header};
@@ -32,47 +31,39 @@ pub enum BatchError {
     Unavailable(String),
 }
 
-/// Answers `batch` against the terrain: inline when it is small, else on a blocking thread
-/// holding one of the server's computation slots.
+/// Answers `batch` against the terrain, on the calling thread.
+fn answer_now(terrain: &Terrain, batch: QueryBatch) -> Result<AnswerBatch, BatchError> {
+    check_batch(&batch.queries).map_err(BatchError::Refused)?;
+    let q = terrain
+        .query
+        .as_ref()
+        .map_err(|e| BatchError::Unavailable(format!("this terrain cannot be queried: {e}")))?;
+    let mut answers = Vec::with_capacity(batch.queries.len());
+    q.answer_all(&batch.queries, &mut answers);
+    Ok(AnswerBatch {
+        id: batch.id,
+        answers,
+    })
+}
+
+/// Answers `batch` against the terrain: inline when it is small, else on the background pool.
 pub async fn answer(
     state: &AppState,
     terrain: &Arc<Terrain>,
     batch: QueryBatch,
 ) -> Result<AnswerBatch, BatchError> {
-    check_batch(&batch.queries).map_err(BatchError::Refused)?;
-    if let Err(e) = &terrain.query {
-        return Err(BatchError::Unavailable(format!(
-            "this terrain cannot be queried: {e}"
-        )));
-    }
     let n = batch.queries.len() as u64;
     let lines = batch.queries.iter().filter(|q| q.is_line()).count();
     let cost_us = 0.25 * (batch.queries.len() - lines) as f64 + 5.0 * lines as f64;
-    let run = move |t: &Terrain, batch: QueryBatch| {
-        let mut answers = Vec::with_capacity(batch.queries.len());
-        if let Ok(q) = &t.query {
-            q.answer_all(&batch.queries, &mut answers);
-        }
-        AnswerBatch {
-            id: batch.id,
-            answers,
-        }
-    };
     let out = if cost_us <= INLINE_US {
-        run(terrain, batch)
+        answer_now(terrain, batch)?
     } else {
-        let _slot = state
-            .one_shots
-            .acquire()
-            .await
-            .map_err(|_| BatchError::Unavailable("the server is stopping".into()))?;
         let t = terrain.clone();
-        tokio::task::spawn_blocking(move || run(&t, batch))
+        state
+            .background
+            .run(move || answer_now(&t, batch))
             .await
-            .map_err(|e| {
-                tracing::error!("query batch failed: {e}");
-                BatchError::Unavailable("the query computation failed".into())
-            })?
+            .map_err(|e| BatchError::Unavailable(e.to_string()))??
     };
     state.metrics.query_batches_total.fetch_add(1, Relaxed);
     state.metrics.queries_total.fetch_add(n, Relaxed);
@@ -93,7 +84,8 @@ struct JsonBatch {
 
 /// `POST /v1/query`: a batch of queries, answered in order. `Content-Type:
 /// application/octet-stream` sends a binary [`QueryBatch`] and gets a binary [`AnswerBatch`];
-/// anything else is read as JSON and answered in JSON.
+/// anything else is read as JSON and answered in JSON. Parsing, answering and writing all run
+/// on the background pool: a JSON body of megabytes takes the async workers no time.
 pub async fn query(
     State(state): State<Arc<AppState>>,
     headers: HeaderMap,
@@ -101,30 +93,56 @@ pub async fn query(
 ) -> Result<Response, ApiError> {
     let t = ready(&state)?;
     let body = read_body(&state, body, MAX_QUERY_BODY).await?;
-    let bad = |e: String| {
-        state.metrics.error(ErrorKind::BadRequest);
-        ApiError::BadRequest(e)
-    };
     let binary = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .is_some_and(|v| v.starts_with(BINARY));
+    let done = state
+        .background
+        .run(move || respond(&t, &body, binary))
+        .await
+        .map_err(super::http::background_failed)?;
+    let (bytes, n) = match done {
+        Ok(v) => v,
+        Err(BatchError::Refused(why)) => {
+            state.metrics.error(ErrorKind::BadRequest);
+            return Err(ApiError::BadRequest(why));
+        }
+        Err(BatchError::Unavailable(why)) => return Err(ApiError::Unavailable(why)),
+    };
+    state.metrics.query_batches_total.fetch_add(1, Relaxed);
+    state.metrics.queries_total.fetch_add(n, Relaxed);
+    state
+        .metrics
+        .bytes_out_total
+        .fetch_add(bytes.len() as u64, Relaxed);
+    let kind = if binary { BINARY } else { "application/json" };
+    Ok(([(header::CONTENT_TYPE, kind)], bytes).into_response())
+}
+
+/// Parses a `POST /v1/query` body, answers it and writes the answer: the encoded answer batch
+/// and the number of queries.
+fn respond(t: &Terrain, body: &[u8], binary: bool) -> Result<(Vec<u8>, u64), BatchError> {
+    let refused = BatchError::Refused;
     // A JSON item that is not a query is answered with its own error, at its place.
     let mut malformed: Vec<(usize, String)> = Vec::new();
     let batch = if binary {
-        codec::decode::<QueryBatch>(&body, MAX_QUERY_BODY)
-            .map_err(|e| bad(format!("the body is not a binary query batch: {e}")))?
+        codec::decode::<QueryBatch>(body, MAX_QUERY_BODY)
+            .map_err(|e| refused(format!("the body is not a binary query batch: {e}")))?
     } else {
-        let j: JsonBatch = serde_json::from_slice(&body)
-            .map_err(|e| bad(format!("the body is not a query batch: {e}")))?;
-        check_len(j.queries.len()).map_err(bad)?;
+        let j: JsonBatch = serde_json::from_slice(body)
+            .map_err(|e| refused(format!("the body is not a query batch: {e}")))?;
+        check_len(j.queries.len()).map_err(refused)?;
         let queries = j
             .queries
             .into_iter()
             .enumerate()
             .map(|(i, v)| {
                 serde_json::from_value::<Query>(v).unwrap_or_else(|e| {
-                    malformed.push((i, format!("item {i} is not a query: {e}")));
+                    malformed.push((
+                        i,
+                        crate::query::batch::clip(format!("item {i} is not a query: {e}")),
+                    ));
                     // A placeholder that costs nothing; its answer is replaced below.
                     Query::Height {
                         at: [f64::NAN, f64::NAN],
@@ -135,26 +153,18 @@ pub async fn query(
             .collect();
         QueryBatch { id: j.id, queries }
     };
-    let mut out = match answer(&state, &t, batch).await {
-        Ok(a) => a,
-        Err(BatchError::Refused(why)) => return Err(bad(why)),
-        Err(BatchError::Unavailable(why)) => return Err(ApiError::Unavailable(why)),
-    };
+    let n = batch.queries.len() as u64;
+    let mut out = answer_now(t, batch)?;
     for (i, message) in malformed {
         out.answers[i] = Answer::Error {
             fault: Fault::Malformed,
             message,
         };
     }
-    let response = if binary {
-        let bytes = codec::encode(&out);
-        state
-            .metrics
-            .bytes_out_total
-            .fetch_add(bytes.len() as u64, Relaxed);
-        ([(header::CONTENT_TYPE, BINARY)], bytes).into_response()
+    let bytes = if binary {
+        codec::encode(&out)
     } else {
-        Json(out).into_response()
+        serde_json::to_vec(&out).map_err(|e| BatchError::Unavailable(e.to_string()))?
     };
-    Ok(response)
+    Ok((bytes, n))
 }

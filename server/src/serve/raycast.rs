@@ -3,12 +3,12 @@
 //! ([`crate::query::view`]). A thumbnail, and the reference `relief-client shot` is compared
 //! with.
 
-use super::http::ApiError;
+use super::http::{ApiError, ApiQuery};
 use super::metrics::ErrorKind;
 use super::state::AppState;
 use super::validate;
 use crate::query::view;
-use axum::extract::{Query, State};
+use axum::extract::State;
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
 use relief_proto::msg::WireCamera;
@@ -71,7 +71,7 @@ fn parse_fov(s: &str) -> Result<f32, String> {
 /// no query surface.
 pub async fn image(
     State(state): State<Arc<AppState>>,
-    Query(q): Query<RaycastQuery>,
+    ApiQuery(q): ApiQuery<RaycastQuery>,
 ) -> Result<Response, ApiError> {
     let t = state.terrain().ok_or(ApiError::NotReady)?;
     let bad = |e: String| {
@@ -103,15 +103,10 @@ pub async fn image(
             "this terrain has no query surface; see the server's log".into(),
         ));
     }
-    let _slot = state
-        .one_shots
-        .acquire()
-        .await
-        .map_err(|_| ApiError::NotReady)?;
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(MAX_THREADS);
-    let work = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, String> {
+    let work = state.background.run(move || -> Result<Vec<u8>, String> {
         let Ok(terrain) = &t.query else {
             return Err("the query surface went away".into());
         };

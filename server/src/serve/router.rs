@@ -49,6 +49,7 @@ pub fn app(state: Arc<AppState>) -> Router {
         .merge(format_routes)
         .merge(pages::routes(&state.web_lib))
         .fallback(http::not_found)
+        .layer(axum::middleware::from_fn(http::uri_limit))
         .layer(DefaultBodyLimit::max(
             state.limits.max_message_bytes as usize,
         ))

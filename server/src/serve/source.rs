@@ -149,19 +149,32 @@ fn open(path: &Path, scratch: &Path) -> Result<Store, SourceError> {
     })
 }
 
-/// Opens the cache entry at `path` if it was built for `key`.
-fn open_cached(path: &Path, scratch: &Path, key: &str) -> Result<Store, String> {
+/// Opens the cache entry at `path` if it was built for `key`: `Err(Ok(why))` when it must be
+/// rebuilt, `Err(Err(e))` when it cannot be opened for a reason a rebuild would not cure (its
+/// private copy does not fit on the disk).
+fn open_cached(
+    path: &Path,
+    scratch: &Path,
+    key: &str,
+) -> Result<Store, Result<String, SourceError>> {
     let store = open(path, scratch).map_err(|e| {
+        if let SourceError::Store {
+            source: crate::store::StoreError::Copy { .. },
+            ..
+        } = e
+        {
+            return Err(e);
+        }
         let why = std::error::Error::source(&e).map(|s| s.to_string());
-        format!("{e}: {}", why.unwrap_or_default())
+        Ok(format!("{e}: {}", why.unwrap_or_default()))
     })?;
     match store.meta().cache_key.as_deref() {
         Some(k) if k == key => Ok(store),
-        other => Err(format!(
+        other => Err(Ok(format!(
             "it holds a store built for {} (from {:?}), not for this DEM ({key})",
             other.unwrap_or("no cache key"),
             store.meta().source
-        )),
+        ))),
     }
 }
 
@@ -183,7 +196,10 @@ pub fn open_terrain(source: &TerrainSource, cache_dir: &Path) -> Result<Store, S
                 tracing::info!("using cached store {}", path.display());
                 return Ok(s);
             }
-            Err(why) => tracing::warn!("rebuilding the cached store {}: {why}", path.display()),
+            Err(Ok(why)) => {
+                tracing::warn!("rebuilding the cached store {}: {why}", path.display())
+            }
+            Err(Err(e)) => return Err(e),
         }
     }
     std::fs::create_dir_all(cache_dir).map_err(|source| SourceError::Cache {

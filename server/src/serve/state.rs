@@ -105,8 +105,27 @@ pub struct SessionStats {
     pub bytes_out: AtomicU64,
     /// Active nodes in the session's cut.
     pub active_nodes: AtomicU64,
-    /// Bytes the session's LOD state holds.
+    /// Bytes the session holds (see [`AppState::set_session_memory`]), as charged against the
+    /// server's memory budget.
     pub memory_bytes: AtomicU64,
+    /// The largest message received: the socket's read buffer grew to it and keeps it.
+    pub largest_in: AtomicU64,
+    /// The largest message sent: the socket's write buffer grew to it and keeps it.
+    pub largest_out: AtomicU64,
+}
+
+impl SessionStats {
+    /// What the session holds besides its LOD state or its answers: the socket's buffers.
+    pub fn socket_bytes(&self) -> u64 {
+        self.socket_bytes_with(0)
+    }
+
+    /// The socket's buffers while a message of `out` bytes waits to be sent.
+    pub fn socket_bytes_with(&self, out: u64) -> u64 {
+        super::session::SOCKET_BYTES
+            + self.largest_in.load(Relaxed)
+            + self.largest_out.load(Relaxed).max(out)
+    }
 }
 
 /// One session as `GET /v1/sessions` lists it.
@@ -114,8 +133,9 @@ pub struct SessionStats {
 pub struct SessionReport {
     /// Session id, as in the welcome, in hex (a JSON number would lose bits in JavaScript).
     pub id: String,
-    /// Client address.
-    pub peer: String,
+    /// Client address: only for a request that carries the operator token.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peer: Option<String>,
     /// Seconds since the session began.
     pub age_s: f64,
     /// Deltas sent.
@@ -126,7 +146,7 @@ pub struct SessionReport {
     pub bytes_out: u64,
     /// Active nodes in the cut.
     pub active_nodes: u64,
-    /// Bytes of LOD state.
+    /// Bytes the session holds: socket buffers, LOD state, answers waiting to be sent.
     pub memory_bytes: u64,
 }
 
@@ -151,13 +171,18 @@ pub struct AppState {
     pub registry: Mutex<HashMap<u64, Arc<SessionStats>>>,
     /// The next session id.
     next_id: AtomicU64,
+    /// Bytes all sessions hold together, charged against `limits.memory_budget`.
+    memory_used: AtomicU64,
     /// Turns true when the server starts draining: sessions tell their clients to reconnect.
     pub draining: watch::Receiver<bool>,
-    /// One-shot computations at once: waiting requests hold no body in memory (it stays in
-    /// the socket until their turn), so a flood of them cannot grow the server.
-    pub one_shots: tokio::sync::Semaphore,
+    /// The long computations (one-shots, query batches, pictures, raster tiles, large JSON,
+    /// expensive sessions' updates), on threads of their own at a lower priority, a slot each.
+    pub background: super::pool::Pool,
     /// Where the pages' npm libraries are (`web/node_modules`; see [`super::pages`]).
     pub web_lib: std::path::PathBuf,
+    /// The scheme and host clients reach the server at (`https://terrain.example.com`), for
+    /// the absolute URLs in TileJSON; without it the request's Host header is used.
+    pub public_url: Option<String>,
 }
 
 impl AppState {
@@ -183,11 +208,13 @@ impl AppState {
                     .unwrap_or(1)
                     << 8,
             ),
+            memory_used: AtomicU64::new(0),
             draining,
-            one_shots: tokio::sync::Semaphore::new(
+            background: super::pool::Pool::new(
                 2 * std::thread::available_parallelism().map_or(2, |n| n.get()),
             ),
             web_lib: super::config::DEFAULT_WEB_LIB.into(),
+            public_url: None,
         }
     }
 
@@ -197,14 +224,20 @@ impl AppState {
         self
     }
 
+    /// The state with `url` as the public URL (no trailing slash).
+    pub fn with_public_url(mut self, url: Option<String>) -> AppState {
+        self.public_url = url.map(|u| u.trim_end_matches('/').to_string());
+        self
+    }
+
     /// The terrain, once ready.
     pub fn terrain(&self) -> Option<Arc<Terrain>> {
         self.terrain.get().cloned()
     }
 
-    /// Registers a new session and returns its id and stats.
-    pub fn register(&self, peer: SocketAddr) -> (u64, Arc<SessionStats>) {
-        let id = self.next_id.fetch_add(1, Relaxed);
+    /// Registers a new session and returns its id and stats, its socket's buffers charged
+    /// against the memory budget; or why not, when the budget is spent.
+    pub fn register(&self, peer: SocketAddr) -> Result<(u64, Arc<SessionStats>), String> {
         let stats = Arc::new(SessionStats {
             peer,
             started: Instant::now(),
@@ -212,25 +245,62 @@ impl AppState {
             acked: AtomicU64::new(0),
             bytes_out: AtomicU64::new(0),
             active_nodes: AtomicU64::new(0),
-            memory_bytes: AtomicU64::new(super::session::SOCKET_BYTES),
+            memory_bytes: AtomicU64::new(0),
+            largest_in: AtomicU64::new(0),
+            largest_out: AtomicU64::new(0),
         });
+        self.set_session_memory(&stats, super::session::SOCKET_BYTES)?;
+        let id = self.next_id.fetch_add(1, Relaxed);
         self.registry
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .insert(id, stats.clone());
-        (id, stats)
+        Ok((id, stats))
     }
 
-    /// Removes a session from the registry.
+    /// Removes a session from the registry and gives its memory back to the budget.
     pub fn unregister(&self, id: u64) {
-        self.registry
+        let gone = self
+            .registry
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .remove(&id);
+        if let Some(s) = gone {
+            let _ = self.set_session_memory(&s, 0);
+        }
     }
 
-    /// Every open session.
-    pub fn session_reports(&self) -> Vec<SessionReport> {
+    /// Sets what session `stats` holds to `bytes`, charged against the memory budget: growth
+    /// that would pass the budget is refused (the session keeps its old figure) with the
+    /// reason; shrinking always goes through.
+    pub fn set_session_memory(&self, stats: &SessionStats, bytes: u64) -> Result<(), String> {
+        let old = stats.memory_bytes.load(Relaxed);
+        if bytes > old {
+            let grow = bytes - old;
+            let budget = self.limits.memory_budget;
+            let took = self.memory_used.fetch_update(Relaxed, Relaxed, |used| {
+                (used.saturating_add(grow) <= budget).then_some(used + grow)
+            });
+            if took.is_err() {
+                return Err(format!(
+                    "the server's memory budget of {} MiB for sessions is spent; retry later",
+                    budget >> 20
+                ));
+            }
+        } else {
+            self.memory_used.fetch_sub(old - bytes, Relaxed);
+        }
+        stats.memory_bytes.store(bytes, Relaxed);
+        Ok(())
+    }
+
+    /// Bytes all sessions hold together.
+    pub fn sessions_memory(&self) -> u64 {
+        self.memory_used.load(Relaxed)
+    }
+
+    /// Every open session, with the clients' addresses when `with_peers`.
+    pub fn session_reports(&self, with_peers: bool) -> Vec<SessionReport> {
         let reg = self.registry.lock().unwrap_or_else(|e| e.into_inner());
         let mut v: Vec<SessionReport> = reg
             .iter()
@@ -238,7 +308,7 @@ impl AppState {
                 let deltas = s.deltas.load(Relaxed);
                 SessionReport {
                     id: format!("{id:016x}"),
-                    peer: s.peer.to_string(),
+                    peer: with_peers.then(|| s.peer.to_string()),
                     age_s: s.started.elapsed().as_secs_f64(),
                     deltas,
                     unacked: deltas.saturating_sub(s.acked.load(Relaxed)),

@@ -33,6 +33,11 @@ const CHEAP_EVALUATIONS: u64 = 8192;
 /// worker. A camera jump can make one update dear; it then costs the worker that one update, and
 /// the session goes back to the blocking pool until it has again been cheap this many times.
 const CHEAP_STREAK: u32 = 8;
+/// A vertex update that evaluated more than this many nodes (tens of milliseconds), or a
+/// budgeted session whose cut holds more interior nodes (each update passes over the whole cut),
+/// makes the session's next update expensive: it runs on the background pool, at a lower
+/// priority, so that a few sessions with huge viewports cannot hold up everyone else's.
+const HEAVY_EVALUATIONS: u64 = 1 << 18;
 
 /// How a session's cut is kept.
 enum Lod {
@@ -59,6 +64,8 @@ pub struct Stream {
     /// Consecutive event-driven vertex updates that evaluated at most [`CHEAP_EVALUATIONS`]
     /// nodes, which [`Stream::is_cheap`] reads.
     cheap_streak: u32,
+    /// Nodes the last event-driven vertex update evaluated, which [`Stream::is_heavy`] reads.
+    last_evaluations: u64,
 }
 
 /// One produced delta.
@@ -102,6 +109,7 @@ impl Stream {
             seq: 0,
             models: Some(Box::default()),
             cheap_streak: 0,
+            last_evaluations: 0,
         }
     }
 
@@ -114,6 +122,7 @@ impl Stream {
             seq: 0,
             models: None,
             cheap_streak: 0,
+            last_evaluations: 0,
         }
     }
 
@@ -126,6 +135,7 @@ impl Stream {
             seq: 0,
             models: None,
             cheap_streak: 0,
+            last_evaluations: 0,
         }
     }
 
@@ -149,6 +159,7 @@ impl Stream {
                 let engine = VertexEngine::new(store);
                 let mut stats = UpdateStats::default();
                 let d = s.update(&engine, &view, &self.params, seq, &mut stats);
+                self.last_evaluations = stats.visited;
                 self.cheap_streak = if stats.visited <= CHEAP_EVALUATIONS {
                     self.cheap_streak.saturating_add(1)
                 } else {
@@ -195,6 +206,16 @@ impl Stream {
     /// cut and always goes to a blocking thread.
     pub fn is_cheap(&self) -> bool {
         matches!(self.lod, Lod::Tiles(_)) || self.cheap_streak >= CHEAP_STREAK
+    }
+
+    /// Whether the next update is expensive enough to run on the background pool (see
+    /// [`HEAVY_EVALUATIONS`]): never for a tile session.
+    pub fn is_heavy(&self) -> bool {
+        match &self.lod {
+            Lod::Coherent(_) => self.last_evaluations > HEAVY_EVALUATIONS,
+            Lod::Budgeted(c) => c.interior_count() as u64 > HEAVY_EVALUATIONS,
+            Lod::Tiles(_) => false,
+        }
     }
 
     /// The current cut's digest.

@@ -7,10 +7,10 @@
 //! A tile's body is the record of an added tile in a tile delta without its index: `varint`
 //! mesh length, `varint` patch length, the mesh blob, the patch blob (`docs/protocol.md`).
 
-use super::http::{ApiError, BINARY, MAX_AGE_S, not_modified};
+use super::http::{ApiError, ApiQuery, BINARY, MAX_AGE_S, not_modified};
 use super::state::AppState;
 use axum::Json;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Path, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use relief_proto::tile::TileId;
@@ -65,7 +65,7 @@ pub async fn tileset(State(state): State<Arc<AppState>>) -> Result<Response, Api
 pub async fn tile(
     State(state): State<Arc<AppState>>,
     Path((z, x, y)): Path<(String, String, String)>,
-    Query(q): Query<TileQuery>,
+    ApiQuery(q): ApiQuery<TileQuery>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let t = state.terrain().ok_or(ApiError::NotReady)?;

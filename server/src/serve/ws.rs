@@ -5,6 +5,7 @@
 use super::limits::Refusal;
 use super::listen::ConnSlot;
 use super::session;
+use super::stall::WriteStall;
 use super::state::AppState;
 use axum::Extension;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, WebSocketUpgrade};
@@ -19,8 +20,14 @@ pub async fn upgrade(
     State(state): State<Arc<AppState>>,
     ConnectInfo(peer): ConnectInfo<SocketAddr>,
     slot: Option<Extension<ConnSlot>>,
+    stall: Option<Extension<WriteStall>>,
     ws: WebSocketUpgrade,
 ) -> Response {
+    // The session bounds its own sends (a slow reader is closed with 4007): the connection's
+    // write timeout is for HTTP responses.
+    if let Some(Extension(s)) = &stall {
+        s.disable();
+    }
     let max = state.limits.max_message_bytes as usize;
     // Client messages are small: a 4 KiB read buffer instead of the default 128 KiB is most
     // of a session's memory saved (larger messages still assemble, up to the limit).

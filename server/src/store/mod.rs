@@ -6,6 +6,7 @@
 //! - [`format`]: the versioned, checksummed file layout.
 //! - [`mmap`]: the one unsafe call, mapping the file.
 //! - [`private`]: the server's private copy of a store, which nothing outside can change.
+//! - [`tmp_build`]: the temporary file a build writes, and its cleaning up.
 //!
 //! [`write_store`] builds and writes a store; [`Store::open`] maps and checks one, and
 //! [`Store::open_private`] maps a private copy.
@@ -16,6 +17,7 @@ pub mod layout;
 mod mmap;
 pub mod private;
 pub mod tiles;
+pub mod tmp_build;
 
 use crate::geo::{Georef, LonLatBounds};
 use format::{HEADER_LEN, Header, META, NODES, TILE_DATA, TILES, VOIDS};
@@ -71,6 +73,15 @@ pub enum StoreError {
     /// This machine cannot read the format in place.
     #[error("stores are little-endian; this machine is not")]
     Endianness,
+    /// The private copy could not be made (a full disk, most often): the store itself may be
+    /// sound.
+    #[error("cannot copy the store into the scratch folder {scratch}: {source}")]
+    Copy {
+        /// The folder the copy was being made in.
+        scratch: String,
+        /// Why.
+        source: std::io::Error,
+    },
 }
 
 /// Descriptive metadata kept in the store as JSON.
@@ -208,9 +219,14 @@ pub fn write_store(
         path: path.display().to_string(),
         source,
     };
-    let tmp = path.with_extension("tmp-build");
+    tmp_build::remove_stale(path);
+    let tmp = tmp_build::TmpBuild(tmp_build::path_for(path, std::process::id()));
+    let tmp_io = |source| StoreError::Io {
+        path: tmp.0.display().to_string(),
+        source,
+    };
     let records = node_records(&geom.shape, &arrays)?;
-    let mut file = std::io::BufWriter::new(File::create(&tmp).map_err(io)?);
+    let mut file = std::io::BufWriter::new(File::create(&tmp.0).map_err(tmp_io)?);
     let size = format::write_sections(
         &mut file,
         header,
@@ -222,10 +238,11 @@ pub fn write_store(
             &pyramid.data,
         ],
     )
-    .map_err(io)?;
-    let file = file.into_inner().map_err(|e| io(e.into_error()))?;
-    file.sync_all().map_err(io)?;
-    std::fs::rename(&tmp, path).map_err(io)?;
+    .map_err(tmp_io)?;
+    let file = file.into_inner().map_err(|e| tmp_io(e.into_error()))?;
+    file.sync_all().map_err(tmp_io)?;
+    std::fs::rename(&tmp.0, path).map_err(io)?;
+    std::mem::forget(tmp);
     Ok((size, build_s, tiles_s))
 }
 
@@ -312,11 +329,19 @@ impl Store {
     /// completely: whatever later happens to `path` (truncated, overwritten, deleted) cannot
     /// reach the open store. See [`private`].
     pub fn open_private(path: &Path, scratch: &Path) -> Result<Store, StoreError> {
-        let io = |source| StoreError::Io {
-            path: path.display().to_string(),
-            source,
-        };
-        let copy = private::copy(path, scratch).map_err(io)?;
+        let copy = private::copy(path, scratch).map_err(|source| {
+            if source.kind() == std::io::ErrorKind::NotFound && !path.exists() {
+                StoreError::Io {
+                    path: path.display().to_string(),
+                    source,
+                }
+            } else {
+                StoreError::Copy {
+                    scratch: scratch.display().to_string(),
+                    source,
+                }
+            }
+        })?;
         Store::from_file(&copy, path)
     }
 

@@ -14,7 +14,11 @@
 //!   ([`relief_proto::tile::body`] explains why), found from the samples and packed; for `rqt`
 //!   tiles, crack curtains down to every neighbour a selection may put across each side
 //!   ([`crate::lod::tile::mesh::curtain`]), taken from every tile's mesh and packed in the
-//!   patch slot ([`relief_proto::tile::body::curtain`]; store format 4).
+//!   patch slot ([`relief_proto::tile::body::curtain`]; store format 4). The `grid` tiles of an
+//!   `rqt` store (those the grid's border clips) carry paper 001's patches, with a flat dropped
+//!   patch also where the finer sample lies exactly on the segment, and the `rqt` sides they
+//!   can meet keep every lattice vertex ([`crate::lod::tile::mesh::pyramid`]; store format 5:
+//!   format 4 gave those tiles an empty patch set, which left their cracks open).
 //!
 //! Voids need nothing here: they were filled smoothly before the build, as for the vertex tree.
 
@@ -156,11 +160,15 @@ pub fn build_pyramid(
                 let mut curtain_tris = 0usize;
                 let (mut err, patches, pblob) = match &m.irregular {
                     None => {
-                        let patches = if kind == MeshKind::Grid {
-                            find_patches(shape, t, &m.z, |c, r| zq[(r * w + c) as usize])
+                        // A grid tile, also in an `rqt` store (one the grid's border clips):
+                        // paper 001's patches, which close its cracks against `rqt` tiles too,
+                        // since their sides that can meet it keep every lattice vertex
+                        // ([`crate::lod::tile::mesh::pyramid`]).
+                        let sample = |c: u32, r: u32| zq[(r * w + c) as usize];
+                        let patches = if kind == MeshKind::Rqt {
+                            grid_patches_in_rqt(shape, t, &m.z, sample)
                         } else {
-                            // An `rqt` store's clipped grid tiles carry an empty patch set.
-                            Patches::default()
+                            find_patches(shape, t, &m.z, sample)
                         };
                         let pblob = encode_patches(shape, t, &m.z, &patches);
                         (grid_err[i], patches, pblob)
@@ -220,6 +228,37 @@ pub fn build_pyramid(
     }
     progress(1.0);
     TilePyramid { records, data }
+}
+
+/// The patches of grid tile `t` (vertex heights `z`, finer samples `sample`) in an `rqt` store:
+/// paper 001's ([`find_patches`]), and also a flat dropped patch where the finer sample `B` lies
+/// exactly on its segment `A-C`. In a `grid` store the finer tile's raised patch closes that
+/// T-junction; a finer `rqt` tile has `B` on its side too but its curtain cannot reach `C`, so
+/// the coarse tile carries the flat triangle, as a coarse `rqt` tile's curtain does.
+fn grid_patches_in_rqt(
+    shape: &TileShape,
+    t: TileId,
+    z: &[i32],
+    sample: impl Fn(u32, u32) -> i32,
+) -> Patches {
+    // With every finer sample one quantum lower, every `B` on or below its segment (and a few
+    // less than a quantum above) gets a dropped patch; keep those on or below, at their height.
+    let mut p = find_patches(shape, t, z, |c, r| sample(c, r).saturating_sub(1));
+    let span = shape.span(t);
+    p.dropped.retain_mut(|d| {
+        d.z = sample(d.at.0, d.at.1);
+        let (a, c) = (span.vertex_pos(d.a), span.vertex_pos(d.c));
+        // Positions along the edge: columns along a row, rows along a column.
+        let (pa, pb, pc) = if a.1 == c.1 {
+            (a.0, d.at.0, c.0)
+        } else {
+            (a.1, d.at.1, c.1)
+        };
+        let (pa, pb, pc) = (i64::from(pa), i64::from(pb), i64::from(pc));
+        let line = i64::from(z[d.a as usize]) * (pc - pb) + i64::from(z[d.c as usize]) * (pb - pa);
+        i64::from(d.z) * (pc - pa) <= line
+    });
+    p
 }
 
 /// Patch and skirt triangles of a set of tiles, for comparisons (paper 001, table 1).

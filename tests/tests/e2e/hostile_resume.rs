@@ -32,6 +32,7 @@ async fn setup(dir: &std::path::Path) -> (TestServer, Vec<u8>, usize) {
         cache_dir: dir.join("cache"),
         limits: Limits::default(),
         web_lib: relief_server::serve::config::DEFAULT_WEB_LIB.into(),
+        public_url: None,
     })
     .await;
     let t = server.state.terrain().unwrap();
@@ -115,7 +116,7 @@ async fn a_resumed_full_cut_costs_memory_in_proportion_accounted_from_the_hello(
             m = ws.next() => break m,
             _ = tokio::time::sleep(Duration::from_millis(1)) => {
                 if first_seen.is_none() {
-                    let r = server.state.session_reports();
+                    let r = server.state.session_reports(true);
                     if let Some(s) = r.first().filter(|s| s.memory_bytes > 4096) {
                         first_seen = Some((t.elapsed(), s.memory_bytes));
                     }
@@ -125,7 +126,7 @@ async fn a_resumed_full_cut_costs_memory_in_proportion_accounted_from_the_hello(
     };
     assert!(matches!(welcome, Some(Ok(_))));
     let opened = t.elapsed();
-    let held = server.state.session_reports()[0].memory_bytes;
+    let held = server.state.session_reports(true)[0].memory_bytes;
     eprintln!(
         "full-cut resume of synthetic:2049: snapshot {snapshot_bytes} B; accounted {first_seen:?} \
          before the welcome at {opened:?}; {held} B held after it ({:.1}x the snapshot)",

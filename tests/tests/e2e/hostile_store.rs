@@ -150,3 +150,76 @@ async fn a_foreign_store_copied_over_a_cache_entry_is_rebuilt_not_served() {
     assert_eq!(t["id"], id, "{t}");
     assert_eq!(t["source"], "synthetic:129:7", "{t}");
 }
+
+/// `relief-server ARGS` with files limited to `kib` KiB (`ulimit -f`; the signal a write past
+/// it raises is ignored, so the write fails with `EFBIG`, as on a full disk).
+fn run_limited(kib: u64, args: &[&str]) -> std::process::Output {
+    let mut script = format!("trap '' XFSZ; ulimit -f {kib}; exec \"$0\"");
+    for i in 1..=args.len() {
+        script.push_str(&format!(" \"${i}\""));
+    }
+    Command::new("bash")
+        .arg("-c")
+        .arg(script)
+        .arg(BIN)
+        .args(args)
+        .env("RELIEF_LOG", "info")
+        .output()
+        .expect("run the server")
+}
+
+/// Files in `dir` whose name ends with `suffix`.
+fn files_ending(dir: &Path, suffix: &str) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .map(|d| {
+            d.flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .filter(|n| n.ends_with(suffix))
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_full_disk_leaves_no_partial_file_and_no_needless_rebuild() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let cache_s = cache.to_str().unwrap();
+    let serve = ["serve", "--cache-dir", cache_s, "--addr", "127.0.0.1:0"];
+    // A build that does not fit: it fails, says which file, and leaves nothing behind.
+    let out = run_limited(64, &serve);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains(".tmp-build"),
+        "the message names the file that failed: {err}"
+    );
+    assert_eq!(files_ending(&cache, ".tmp-build"), Vec::<String>::new());
+    // Built with room, then restarted where its private copy does not fit: the server says
+    // where the copy failed and leaves the valid store alone.
+    let addr = free_addr();
+    let a = addr.to_string();
+    let server =
+        ChildServer::start_with_args(Path::new(BIN), addr, &["--cache-dir", cache_s], &[]).await;
+    drop(server);
+    let stores = files_ending(&cache, ".relief");
+    assert_eq!(stores.len(), 1, "{stores:?}");
+    let store = cache.join(&stores[0]);
+    let built = std::fs::metadata(&store).unwrap().modified().unwrap();
+    let out = run_limited(64, &["serve", "--cache-dir", cache_s, "--addr", &a]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(
+        err.contains("scratch folder"),
+        "the message names the copy: {err}"
+    );
+    assert!(
+        !err.contains("rebuilding"),
+        "a valid store was rebuilt: {err}"
+    );
+    assert_eq!(
+        std::fs::metadata(&store).unwrap().modified().unwrap(),
+        built
+    );
+    assert_eq!(files_ending(&cache, ".tmp-build"), Vec::<String>::new());
+}

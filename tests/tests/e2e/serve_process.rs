@@ -132,3 +132,40 @@ async fn flags_beat_environment_variables_which_beat_the_config_file() {
         assert_eq!(admitted(&url, 5).await, 2, "the flag beats the variable");
     }
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_drain_does_not_wait_for_connections_that_said_nothing() {
+    use relief_tests::raw::{Closed, binary, connect_from, lo, read_close, ws_open};
+    use tokio::io::AsyncWriteExt;
+    let addr = free_addr();
+    let mut server = ChildServer::start(Path::new(BIN), addr, &[]).await;
+    // An upgraded WebSocket that never says hello, one that sends half a hello, and a request
+    // with half its headers.
+    let mut silent = ws_open(lo(1), addr).await;
+    let mut halting = ws_open(lo(1), addr).await;
+    let hello = binary(&relief_tests::hello());
+    halting.write_all(&hello[..hello.len() / 2]).await.unwrap();
+    let mut half = connect_from(lo(1), addr).await.unwrap();
+    half.write_all(b"GET /v1/terrain HTTP/1.1\r\nHost: x\r\n")
+        .await
+        .unwrap();
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    server.signal(Signal::SIGTERM);
+    let took = server
+        .wait(Duration::from_secs(10))
+        .expect("the server did not exit");
+    eprintln!("exit took {took:?}");
+    assert!(
+        took < Duration::from_secs(2),
+        "the drain waited {took:?} for connections that said nothing"
+    );
+    for ws in [&mut silent, &mut halting] {
+        match read_close(ws).await {
+            Closed::Code(code, text) => {
+                assert_eq!(code, 1012, "{text}");
+                assert!(text.starts_with("draining: "), "{text}");
+            }
+            other => panic!("no close frame: {other:?}"),
+        }
+    }
+}

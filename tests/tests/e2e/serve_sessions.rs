@@ -137,7 +137,7 @@ async fn a_client_that_stops_reading_holds_a_bounded_window() {
             .unwrap();
     }
     tokio::time::sleep(std::time::Duration::from_millis(500)).await;
-    let reports = server.state.session_reports();
+    let reports = server.state.session_reports(true);
     assert_eq!(reports.len(), 1);
     let r = &reports[0];
     assert!(r.deltas <= 3, "{r:?}");

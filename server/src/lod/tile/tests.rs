@@ -1,6 +1,9 @@
 //! Property tests of the tile engine: every selection covers the terrain exactly once and is
 //! restricted; deltas replayed by a client mirror rebuild the server's set (with and without a
-//! budget, with a small cache); a camera at rest yields empty deltas.
+//! budget, with a small cache); a camera at rest yields empty deltas. [`cracks`]: no pair of
+//! tiles that can meet leaves a crack open, for every mesh kind and crack mode.
+
+mod cracks;
 
 use super::TileEngine;
 use super::session::TileSession;

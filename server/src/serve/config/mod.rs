@@ -96,6 +96,28 @@ pub struct ServeArgs {
     /// pass 10 s [default: 1000000].
     #[arg(long, env = "RELIEF_RESUME_NODES_PER_S_PER_IP")]
     pub resume_nodes_per_s_per_ip: Option<f64>,
+    /// Close an HTTP connection whose client has read nothing of its response for this many
+    /// seconds, and free the response (sessions close such a client as a slow reader after
+    /// `idle_timeout_s` instead) [default: 20].
+    #[arg(long, env = "RELIEF_WRITE_TIMEOUT_S")]
+    pub write_timeout_s: Option<f64>,
+    /// Memory all sessions together may hold, MiB: their LOD state, their query answers
+    /// waiting to be sent, their buffers. A session that would take more is refused or closed
+    /// with `server_full` (1013, retry later), a query batch answered with an error [default: a
+    /// quarter of the machine's memory, or of the cgroup's limit].
+    #[arg(long, env = "RELIEF_MEMORY_BUDGET_MB")]
+    pub memory_budget_mb: Option<u64>,
+    /// A secret that operators send as `Authorization: Bearer <token>` to see each session's
+    /// address in `GET /v1/sessions`; without it the addresses are left out [default: none,
+    /// addresses never shown].
+    #[arg(long, env = "RELIEF_OPERATOR_TOKEN", hide_env_values = true)]
+    pub operator_token: Option<String>,
+    /// The URL clients reach the server at, as `SCHEME://HOST[:PORT]` (e.g.
+    /// `https://terrain.example.com`), written into the tile URLs of the TileJSONs. Set it
+    /// behind a proxy or cache [default: none: the request's Host header, checked to be a host
+    /// name, with `Vary: Host`].
+    #[arg(long, env = "RELIEF_PUBLIC_URL")]
+    pub public_url: Option<String>,
     /// The npm packages of the `/cesium/` and `/maplibre/` pages, as `npm ci --prefix web`
     /// installs them: `/lib/cesium/` serves its `cesium/Build/Cesium` and `/lib/maplibre-gl/`
     /// its `maplibre-gl/dist` [default: web/node_modules in the repository the server was built
@@ -144,6 +166,14 @@ pub struct FileConfig {
     pub max_openings: Option<u32>,
     /// See [`ServeArgs::resume_nodes_per_s_per_ip`].
     pub resume_nodes_per_s_per_ip: Option<f64>,
+    /// See [`ServeArgs::write_timeout_s`].
+    pub write_timeout_s: Option<f64>,
+    /// See [`ServeArgs::memory_budget_mb`].
+    pub memory_budget_mb: Option<u64>,
+    /// See [`ServeArgs::operator_token`].
+    pub operator_token: Option<String>,
+    /// See [`ServeArgs::public_url`].
+    pub public_url: Option<String>,
     /// See [`ServeArgs::web_lib`].
     pub web_lib: Option<PathBuf>,
 }
@@ -211,6 +241,41 @@ pub struct Limits {
     pub max_openings: u32,
     /// Interior nodes of resumed cuts per second per IP address.
     pub resume_nodes_per_s_per_ip: f64,
+    /// Longest an HTTP response may wait for its client to read any of it.
+    pub write_timeout: Duration,
+    /// Bytes all sessions together may hold.
+    pub memory_budget: u64,
+    /// What shows `GET /v1/sessions`'s addresses, if anything.
+    pub operator_token: Option<Secret>,
+}
+
+/// A secret: compared, never printed (the configuration is logged at start).
+#[derive(Clone, PartialEq, Eq)]
+pub struct Secret(pub String);
+
+impl std::fmt::Debug for Secret {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Secret(..)")
+    }
+}
+
+/// The default memory budget: a quarter of the memory this process may use (the cgroup's
+/// limit where there is one, else the machine's), or 1 GiB where neither can be read.
+pub fn default_memory_budget() -> u64 {
+    let cgroup = std::fs::read_to_string("/sys/fs/cgroup/memory.max")
+        .ok()
+        .and_then(|s| s.trim().parse::<u64>().ok());
+    let machine = std::fs::read_to_string("/proc/meminfo").ok().and_then(|s| {
+        s.lines()
+            .find_map(|l| l.strip_prefix("MemTotal:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+            .map(|kb| kb * 1024)
+    });
+    match (cgroup, machine) {
+        (Some(c), Some(m)) => c.min(m) / 4,
+        (Some(x), None) | (None, Some(x)) => x / 4,
+        (None, None) => 1 << 30,
+    }
 }
 
 impl Default for Limits {
@@ -231,6 +296,9 @@ impl Default for Limits {
             max_openings: std::thread::available_parallelism()
                 .map_or(1, |n| (n.get() as u32 / 2).max(1)),
             resume_nodes_per_s_per_ip: 1.0e6,
+            write_timeout: Duration::from_secs(20),
+            memory_budget: default_memory_budget(),
+            operator_token: None,
         }
     }
 }
@@ -248,6 +316,8 @@ pub struct ServeConfig {
     pub limits: Limits,
     /// Where the pages' npm libraries are (`web/node_modules`).
     pub web_lib: PathBuf,
+    /// See [`ServeArgs::public_url`].
+    pub public_url: Option<String>,
 }
 
 /// A configuration that cannot be used.
@@ -454,6 +524,27 @@ impl ServeArgs {
                     .or(file.resume_nodes_per_s_per_ip)
                     .unwrap_or(d.resume_nodes_per_s_per_ip),
             )?,
+            write_timeout: match self.write_timeout_s.or(file.write_timeout_s) {
+                Some(s) => seconds("write_timeout_s", s)?,
+                None => d.write_timeout,
+            },
+            memory_budget: match self.memory_budget_mb.or(file.memory_budget_mb) {
+                Some(0) => {
+                    return Err(ConfigError::Invalid(
+                        "memory_budget_mb must be positive".into(),
+                    ));
+                }
+                Some(mb) => mb.saturating_mul(1 << 20),
+                None => d.memory_budget,
+            },
+            operator_token: match self.operator_token.clone().or(file.operator_token) {
+                Some(t) if t.trim().is_empty() => {
+                    return Err(ConfigError::Invalid(
+                        "operator_token must not be empty".into(),
+                    ));
+                }
+                t => t.map(Secret),
+            },
         };
         let addr = resolve_addr(
             self.addr
@@ -476,6 +567,14 @@ impl ServeArgs {
                 .clone()
                 .or(file.web_lib)
                 .unwrap_or_else(|| PathBuf::from(DEFAULT_WEB_LIB)),
+            public_url: match self.public_url.clone().or(file.public_url) {
+                Some(u) if !(u.starts_with("http://") || u.starts_with("https://")) => {
+                    return Err(ConfigError::Invalid(format!(
+                        "public_url {u:?} must start with http:// or https://"
+                    )));
+                }
+                u => u,
+            },
         })
     }
 }

@@ -118,9 +118,9 @@ where
             state.metrics.deltas_total.fetch_add(1, Relaxed);
             stats.deltas.fetch_add(1, Relaxed);
             stats.active_nodes.store(lod.active_count(), Relaxed);
-            stats
-                .memory_bytes
-                .store(super::SOCKET_BYTES + lod.memory_bytes() as u64, Relaxed);
+            state
+                .set_session_memory(stats, stats.socket_bytes() + lod.memory_bytes() as u64)
+                .map_err(|e| (CloseReason::ServerFull, e))?;
             let max_nodes = state.limits.max_cut_nodes as usize;
             if lod.over_limit(max_nodes) {
                 return fail(CloseReason::CutLimit, validate::cut_limit(max_nodes));
@@ -131,7 +131,7 @@ where
         tokio::select! {
             _ = draining.changed() => continue,
             _ = sleep, if want && open && wait_for_tokens.is_some() => continue,
-            m = receive(socket, state) => match m? {
+            m = receive(socket, state, stats) => match m? {
                 None => return Ok(()),
                 Some(ClientMsg::Hello(_)) => return fail(CloseReason::Protocol, "a second hello"),
                 Some(ClientMsg::Query(_)) => return fail(CloseReason::Protocol, "query batches belong to query sessions (stream kind query)"),
@@ -177,14 +177,23 @@ async fn compute(
         return Ok(produced);
     }
     let t = terrain.clone();
-    // The state moves to a blocking thread and back; a placeholder holds its place.
+    let heavy = lod.is_heavy();
+    // The state moves to a worker thread and back; a placeholder holds its place.
     let mut owned = std::mem::replace(lod, LodStream::placeholder());
-    let joined = tokio::task::spawn_blocking(move || {
+    let work = move || {
         let started = Instant::now();
         let produced = owned.update(&t.store, &camera, allowance);
         (owned, produced, started.elapsed().as_secs_f64())
-    })
-    .await;
+    };
+    // An expensive session waits its turn on the background pool, at a lower priority;
+    // an ordinary one goes to a blocking thread at once.
+    let joined = if heavy {
+        state.background.run(work).await.map_err(|e| e.to_string())
+    } else {
+        tokio::task::spawn_blocking(work)
+            .await
+            .map_err(|e| e.to_string())
+    };
     match joined {
         Ok((back, produced, secs)) => {
             *lod = back;

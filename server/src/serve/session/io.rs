@@ -60,6 +60,7 @@ fn client_fault(e: &(dyn StdError + 'static), state: &AppState) -> Option<(Close
 pub(super) async fn receive<S, E>(
     socket: &mut S,
     state: &AppState,
+    stats: &SessionStats,
 ) -> Result<Option<ClientMsg>, (CloseReason, String)>
 where
     S: Stream<Item = Result<Message, E>> + Unpin,
@@ -92,6 +93,7 @@ where
                     .metrics
                     .bytes_in_total
                     .fetch_add(bytes.len() as u64, Relaxed);
+                stats.largest_in.fetch_max(bytes.len() as u64, Relaxed);
                 return match codec::decode::<ClientMsg>(
                     &bytes,
                     state.limits.max_message_bytes as usize,
@@ -122,8 +124,21 @@ pub(super) async fn send<S>(
 where
     S: Sink<Message> + Unpin,
 {
-    let bytes = codec::encode(msg);
+    send_encoded(socket, state, stats, codec::encode(msg)).await
+}
+
+/// Sends one encoded message within the idle timeout.
+pub(super) async fn send_encoded<S>(
+    socket: &mut S,
+    state: &AppState,
+    stats: &SessionStats,
+    bytes: Vec<u8>,
+) -> Ended
+where
+    S: Sink<Message> + Unpin,
+{
     let n = bytes.len() as u64;
+    stats.largest_out.fetch_max(n, Relaxed);
     match tokio::time::timeout(
         state.limits.idle_timeout,
         socket.send(Message::Binary(bytes.into())),

@@ -31,7 +31,7 @@ use crate::lod::tile::session::TileSession;
 use crate::lod::vertex::{LodParams, VertexEngine};
 use axum::extract::ws::{CloseFrame, Message};
 use flow::stream_loop;
-use futures_util::{Sink, SinkExt, Stream};
+use futures_util::{Sink, SinkExt, Stream, StreamExt};
 use io::{Ended, fail, receive, send};
 use relief_proto::close::CloseReason;
 use relief_proto::cut::Cut;
@@ -48,9 +48,20 @@ where
     S: Stream<Item = Result<Message, E>> + Sink<Message> + Unpin + Send,
     E: StdError + Send + Sync + 'static,
 {
-    let (id, stats) = state.register(peer);
-    let ended = session(&mut socket, &state, id, &stats).await;
-    state.unregister(id);
+    let (id, ended) = match state.register(peer) {
+        Ok((id, stats)) => {
+            let ended = session(&mut socket, &state, id, &stats).await;
+            state.unregister(id);
+            (id, ended)
+        }
+        Err(why) => (0, Err((CloseReason::ServerFull, why))),
+    };
+    // A slow reader has a socket full of what it has not read yet; its close frame comes after
+    // all that, so it gets longer to arrive.
+    let linger = match &ended {
+        Err((CloseReason::SlowReader, _)) => SLOW_READER_LINGER,
+        _ => Duration::from_secs(1),
+    };
     if let Err((reason, detail)) = ended {
         state.metrics.close(reason);
         let text = reason.text(&detail);
@@ -63,11 +74,22 @@ where
             code: reason.code(),
             reason: text.into(),
         }));
-        let _ = tokio::time::timeout(Duration::from_secs(1), socket.send(frame)).await;
+        let _ = tokio::time::timeout(linger, socket.send(frame)).await;
     }
     let _ = tokio::time::timeout(Duration::from_secs(1), socket.close()).await;
+    // The closing handshake: read (and drop) what the client still sends until its close
+    // frame. A socket closed with unread input is reset, and a reset discards what the
+    // client had not yet read, the close frame included.
+    let _ = tokio::time::timeout(linger, async {
+        while let Some(Ok(_)) = socket.next().await {}
+    })
+    .await;
     drop(permit);
 }
+
+/// How long a slow reader's close frame may take to be written, and its closing handshake to
+/// finish: the client may still be reading what was sent before.
+const SLOW_READER_LINGER: Duration = Duration::from_secs(10);
 
 /// The session's configuration, from the hello.
 struct Opening<'a> {
@@ -158,8 +180,10 @@ async fn open<'a>(
             .iter()
             .map(|b| u64::from(b.count_ones()))
             .sum();
-        let bytes = SOCKET_BYTES + r.snapshot.bits.len() as u64 + 2 * nodes;
-        stats.memory_bytes.store(bytes, Relaxed);
+        let bytes = stats.socket_bytes() + r.snapshot.bits.len() as u64 + 2 * nodes;
+        state
+            .set_session_memory(stats, bytes)
+            .map_err(|e| (CloseReason::ServerFull, e))?;
         pace_resume(state, stats.peer, nodes).await?;
         if nodes >= HEAVY_RESUME_NODES {
             // Large resumes take turns, until their first delta (which examines the whole
@@ -240,7 +264,16 @@ where
     let Some(terrain) = state.terrain() else {
         return fail(CloseReason::NotReady, "the terrain is not ready yet");
     };
-    let hello = match receive(socket, state).await? {
+    // A client that has not said hello by the time the server drains is told so at once: it
+    // holds no state worth waiting for.
+    let mut draining = state.draining.clone();
+    let first = tokio::select! {
+        r = receive(socket, state, stats) => r?,
+        _ = async { draining.wait_for(|d| *d).await.map(|_| ()) } => {
+            return fail(CloseReason::Draining, "the server is shutting down");
+        }
+    };
+    let hello = match first {
         None => return Ok(()),
         Some(ClientMsg::Hello(h)) => h,
         Some(_) => return fail(CloseReason::Protocol, "the first message must be a hello"),
@@ -257,9 +290,9 @@ where
         },
         resumed,
     ) = open(hello, &terrain, state, stats).await?;
-    stats
-        .memory_bytes
-        .store(SOCKET_BYTES + lod.memory_bytes() as u64, Relaxed);
+    state
+        .set_session_memory(stats, stats.socket_bytes() + lod.memory_bytes() as u64)
+        .map_err(|e| (CloseReason::ServerFull, e))?;
     state.metrics.sessions_total.fetch_add(1, Relaxed);
     if resumed {
         state.metrics.resumes_total.fetch_add(1, Relaxed);

@@ -4,12 +4,13 @@
 //! reads the next one when it has answered the last, so the socket's buffers bound what waits.
 //! A drain ends the session once the batch in hand is answered.
 
-use super::io::{Ended, fail, receive, send};
+use super::io::{Ended, fail, receive, send_encoded};
 use crate::serve::query::{BatchError, answer};
 use crate::serve::state::{AppState, SessionStats, Terrain};
 use axum::extract::ws::Message;
 use futures_util::{Sink, Stream};
 use relief_proto::close::CloseReason;
+use relief_proto::codec;
 use relief_proto::msg::{ClientMsg, ServerMsg};
 use relief_proto::query::BatchRefused;
 use std::error::Error as StdError;
@@ -33,7 +34,7 @@ where
         }
         let msg = tokio::select! {
             _ = draining.changed() => continue,
-            m = receive(socket, state) => m?,
+            m = receive(socket, state, stats) => m?,
         };
         let batch = match msg {
             None => return Ok(()),
@@ -60,6 +61,19 @@ where
             }
             Err(BatchError::Unavailable(why)) => return fail(CloseReason::Internal, why),
         };
-        send(socket, state, stats, &reply).await?;
+        let mut bytes = codec::encode(&reply);
+        // The answer waits in the socket's write buffer until the client reads it: charged
+        // against the memory budget first, or refused.
+        if let Err(why) =
+            state.set_session_memory(stats, stats.socket_bytes_with(bytes.len() as u64))
+        {
+            state
+                .metrics
+                .error(crate::serve::metrics::ErrorKind::MemoryBudget);
+            bytes = codec::encode(&ServerMsg::Refused(BatchRefused { id, reason: why }));
+        }
+        send_encoded(socket, state, stats, bytes).await?;
+        // The write buffer keeps the room of the largest message (`largest_out`).
+        let _ = state.set_session_memory(stats, stats.socket_bytes());
     }
 }

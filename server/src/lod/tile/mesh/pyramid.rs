@@ -16,7 +16,12 @@
 //! - `grid`: every vertex of the tile's lattice.
 //! - `rqt`: paper 002's restricted quadtree over the tile's lattice ([`super::rqt`]). It needs
 //!   a square lattice of `2^k + 1` vertices a side; a tile clipped by the grid's east or south
-//!   border is not, and stays a `grid` tile (the body says which kind each tile is).
+//!   border is not, and stays a `grid` tile (the body says which kind each tile is). Such a tile
+//!   closes its cracks with paper 001's patches, which only meet a neighbour's border where it
+//!   has every lattice vertex of its level: so every side of an `rqt` tile that a selection can
+//!   put against a `grid` tile ([`meets_grid`]) keeps all its lattice vertices (raised to be
+//!   always active, [`RqtErrors::raise`], which keeps the mesh restricted). Its curtains close
+//!   the cracks where it stands higher, the grid tile's patches those where it stands higher.
 //! - `tin`: paper 003's greedy insertion over the tile's lattice, with the shared border points
 //!   anywhere on the full-resolution samples of its sides ([`super::borders::tile_tin`]).
 //!
@@ -24,11 +29,12 @@
 //! (quantised heights) and every original sample it covers.
 
 use super::borders::tile_tin;
+use super::curtain::across;
 use super::rqt::RqtErrors;
 use super::{HeightGrid, TriMesh};
 use relief_proto::tile::body::rqt::{encode_rqt, rqt_side};
 use relief_proto::tile::body::{IrregularMesh, MeshKind, encode_irregular, encode_mesh};
-use relief_proto::tile::{TileId, TileShape};
+use relief_proto::tile::{EDGES, Edge, TileId, TileShape};
 
 /// The vertical tolerances, metres, of the adaptive meshes.
 #[derive(Clone, Debug, PartialEq)]
@@ -146,9 +152,18 @@ pub fn mesh_tile(
             let errors = HeightGrid::new(nx as usize, ny as usize, &lattice)
                 .filter(|_| rqt_side(&span).is_some())
                 .and_then(|g| RqtErrors::new(&g).ok());
-            let Some(errors) = errors else {
+            let Some(mut errors) = errors else {
                 return grid();
             };
+            // Every lattice vertex on a side that can meet a `grid` tile: that tile's patches
+            // need them (see the module docs).
+            let full = EDGES
+                .into_iter()
+                .filter(|&e| meets_grid(shape, t, e))
+                .flat_map(|e| errors.edge(e))
+                .map(|p| (p, f32::MAX))
+                .collect::<Vec<_>>();
+            errors.raise(full);
             let tolerance = tol.tile(shape.index(t));
             let blob = encode_rqt(
                 &span,
@@ -170,6 +185,15 @@ pub fn mesh_tile(
             irregular(m, MeshKind::Tin, None)
         }
     }
+}
+
+/// Whether a restricted selection can put a `grid` tile across side `e` of tile `t` in an
+/// `rqt` store: a tile the grid's east or south border clips ([`rqt_side`]), at `t`'s level or
+/// one apart ([`across`]).
+pub fn meets_grid(shape: &TileShape, t: TileId, e: Edge) -> bool {
+    across(shape, t, e)
+        .iter()
+        .any(|&(u, _)| rqt_side(&shape.span(u)).is_none())
 }
 
 /// The largest distance, metres, between tile `t`'s irregular mesh (heights `z` in quanta of
