@@ -56,16 +56,40 @@ fn scaled(n: usize) -> usize {
     ((n as f64 * k).round() as usize).max(1)
 }
 
-/// The bystander: 800 x 600, tau 2, a pose every 200 ms.
-async fn bystander(addr: SocketAddr) -> Bystander {
+/// A vertex session's configuration for the server at `addr`: a `width` x `height` viewport
+/// at `tau`.
+fn vertex(addr: SocketAddr, width: u32, height: u32, tau: f32) -> SessionConfig {
     let mut c = SessionConfig::new(&format!("ws://{addr}/v1/stream"));
     c.lens = Lens {
-        width: 800,
-        height: 600,
+        width,
+        height,
         ..Lens::STANDARD
     };
-    c.tau = 2.0;
-    Bystander::start_with(c, 0, Duration::from_millis(200)).await
+    c.tau = tau;
+    c
+}
+
+/// The probes' bystander: 800 x 600, tau 2, a pose every 200 ms.
+async fn bystander(addr: SocketAddr) -> Bystander {
+    Bystander::start_with(vertex(addr, 800, 600, 2.0), 0, Duration::from_millis(200)).await
+}
+
+/// A runtime of one thread, for the attackers: their work in this process must not slow the
+/// bystander's client.
+fn attack_runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .expect("attack runtime")
+}
+
+/// Prints a probe's figures.
+fn report(calm: Latency, attacked: Latency, what: String) {
+    eprintln!("server {}", bin().display());
+    eprintln!("calm:     {calm:?}");
+    eprintln!("attacked: {attacked:?}");
+    eprintln!("{what}");
 }
 
 /// Asserts the bystander's 99th percentile under 100 ms during `what`.
@@ -102,11 +126,7 @@ impl Attack {
         kind: &'static str,
         body: Vec<u8>,
     ) -> Attack {
-        let rt = tokio::runtime::Builder::new_multi_thread()
-            .worker_threads(1)
-            .enable_all()
-            .build()
-            .expect("attack runtime");
+        let rt = attack_runtime();
         let stop = Arc::new(AtomicBool::new(false));
         let done = Arc::new(AtomicU64::new(0));
         let tasks = (0..n)
@@ -235,14 +255,7 @@ async fn one_shots_that_fill_every_slot_leave_sessions_their_latency() {
     );
     tokio::time::sleep(Duration::from_millis(500)).await;
     let health = Instant::now();
-    let ok = relief_client::http::request(
-        "GET",
-        &format!("http://{addr}/healthz"),
-        "text/plain",
-        vec![],
-    )
-    .await
-    .is_ok();
+    let ok = get(addr, "/healthz").await.is_ok();
     let health = health.elapsed();
     let attacked = by.measure(Duration::from_secs(4)).await;
     let (l, c, j) = (lods.stop().await, casts.stop().await, jsons.stop().await);
@@ -279,7 +292,8 @@ async fn answers_nobody_reads_are_dropped_after_the_write_timeout() {
             // The answers are computed and stall in the sockets; the write timeout ends them,
             // each counted as a connection error.
             let deadline = Instant::now() + Duration::from_secs(30);
-            while connection_errors(addr).await < held.len() as u64 && Instant::now() < deadline {
+            while errors(addr, "connection").await < held.len() as u64 && Instant::now() < deadline
+            {
                 tokio::time::sleep(Duration::from_millis(200)).await;
             }
             held
@@ -311,19 +325,20 @@ async fn answers_nobody_reads_are_dropped_after_the_write_timeout() {
     drop(server);
 }
 
-/// `relief_errors_total{kind="connection"}` of the server at `addr`.
-async fn connection_errors(addr: SocketAddr) -> u64 {
-    let m = relief_client::http::request(
-        "GET",
-        &format!("http://{addr}/metrics"),
-        "text/plain",
-        vec![],
-    )
-    .await
-    .unwrap_or_default();
+/// `GET path` of the server at `addr`.
+async fn get(addr: SocketAddr, path: &str) -> Result<Vec<u8>, relief_client::http::HttpError> {
+    let url = format!("http://{addr}{path}");
+    let b = relief_client::http::request("GET", &url, "text/plain", vec![]).await?;
+    Ok(b.to_vec())
+}
+
+/// `relief_errors_total{kind="<kind>"}` of the server at `addr` (0 when absent).
+async fn errors(addr: SocketAddr, kind: &str) -> u64 {
+    let m = get(addr, "/metrics").await.unwrap_or_default();
+    let prefix = format!("relief_errors_total{{kind=\"{kind}\"}} ");
     String::from_utf8_lossy(&m)
         .lines()
-        .find_map(|l| l.strip_prefix("relief_errors_total{kind=\"connection\"} "))
+        .find_map(|l| l.strip_prefix(prefix.as_str()))
         .and_then(|v| v.trim().parse().ok())
         .unwrap_or(0)
 }
@@ -384,14 +399,7 @@ async fn query_sessions_that_never_read_stay_within_the_memory_budget_and_are_co
         .await;
     assert_p99("query sessions that never read", calm, attacked);
     // What `/v1/sessions` reports is what they hold, within the budget.
-    let reports = relief_client::http::request(
-        "GET",
-        &format!("http://{addr}/v1/sessions"),
-        "text/plain",
-        vec![],
-    )
-    .await
-    .expect("sessions");
+    let reports = get(addr, "/v1/sessions").await.expect("sessions");
     let reports: serde_json::Value = serde_json::from_slice(&reports).unwrap();
     let mem: Vec<u64> = reports
         .as_array()
@@ -412,22 +420,7 @@ async fn query_sessions_that_never_read_stay_within_the_memory_budget_and_are_co
     );
     // Past the budget, batches were refused (and counted).
     drop(socks);
-    let mut refused = 0;
-    let m = relief_client::http::request(
-        "GET",
-        &format!("http://{addr}/metrics"),
-        "text/plain",
-        vec![],
-    )
-    .await
-    .expect("metrics");
-    let m = String::from_utf8_lossy(&m);
-    if let Some(v) = m
-        .lines()
-        .find_map(|l| l.strip_prefix("relief_errors_total{kind=\"memory_budget\"} "))
-    {
-        refused = v.trim().parse::<u64>().unwrap_or(0);
-    }
+    let refused = errors(addr, "memory_budget").await;
     eprintln!("batches refused: {refused}");
     assert!(refused > 0, "no batch was refused over the budget");
     assert_eq!(by.stop().await.desyncs, 0);
@@ -468,10 +461,55 @@ async fn probe_bystander_under_mixed_load() {
                 .map(|v| v.trim().to_string())
         })
         .unwrap_or_default();
-    eprintln!("server {}", bin().display());
-    eprintln!("calm:     {calm:?}");
-    eprintln!("attacked: {attacked:?}");
-    eprintln!("answered: {l} one-shots, {c} pictures; server RSS after: {rss}");
+    report(
+        calm,
+        attacked,
+        format!("answered: {l} one-shots, {c} pictures; server RSS after: {rss}"),
+    );
     drop(held);
     by.stop().await;
+}
+
+/// A second figure, not a check: a vertex bystander beside four vertex sessions with a
+/// 16384 x 16384 viewport at tau 0.25 that fly without pause (on their own runtime), for 10 s.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+#[ignore = "a measurement: run with --ignored --nocapture"]
+async fn probe_bystander_beside_huge_viewports() {
+    let addr = free_addr();
+    let server = start(addr, &[]).await;
+    let by = bystander(addr).await;
+    let calm = by.measure(Duration::from_secs(3)).await;
+    let rt = attack_runtime();
+    let poses = Arc::new(AtomicU64::new(0));
+    for i in 0..4 {
+        let poses = poses.clone();
+        rt.spawn(async move {
+            let mut c = vertex(addr, 16384, 16384, 0.25);
+            c.mesh = false;
+            let Ok(mut s) = relief_client::session::Session::connect(c).await else {
+                return;
+            };
+            for cam in path(i + 1, 400) {
+                let Ok(seq) = s.send_pose(cam).await else {
+                    return;
+                };
+                if s.wait_for_pose(seq).await.is_err() {
+                    return;
+                }
+                poses.fetch_add(1, Relaxed);
+            }
+        });
+    }
+    let attacked = by.measure(Duration::from_secs(10)).await;
+    rt.shutdown_background();
+    report(
+        calm,
+        attacked,
+        format!(
+            "the huge viewports' poses answered: {}",
+            poses.load(Relaxed)
+        ),
+    );
+    by.stop().await;
+    drop(server);
 }
