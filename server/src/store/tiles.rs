@@ -89,52 +89,47 @@ pub fn build_pyramid(
         unreachable!("a tile shape has at least 2 x 2 samples, one height each");
     };
     let n = shape.tile_count() as usize;
+    let tile = |i: usize| shape.tile(i as u32).unwrap_or(TileId::ROOT);
     // Every tile's grid error and bounds first: the grid's own errors, and the adaptive kinds'
-    // tolerances.
-    let mut grid_err = vec![0f32; n];
-    let mut bounds = vec![(0i32, 0i32); n];
-    let steps = if kind == MeshKind::Grid { 1.0 } else { 2.0 };
-    for i in 0..n as u32 {
-        let t = shape.tile(i).unwrap_or(TileId::ROOT);
-        let span = shape.span(t);
-        let z: Vec<f32> = (0..span.vertex_count() as u32)
-            .map(|v| {
-                let (c, r) = span.vertex_pos(v);
-                quantised.at(c, r)
-            })
-            .collect();
-        let (mut err, mut lo, mut hi) = (0f32, f32::MAX, f32::MIN);
-        for r in span.rows.0..=span.rows.1 {
-            for c in span.cols.0..=span.cols.1 {
-                let h = orig.at(c, r);
-                lo = lo.min(h);
-                hi = hi.max(h);
-                err = err.max((grid_height(&span, &z, c as f32, r as f32) - h).abs());
+    // tolerances. Each step below is one tile at a time, independent of the others, on every
+    // core; the results come back in tile order, so the store is the same bytes whatever the
+    // number of threads.
+    let steps = if kind == MeshKind::Grid { 2.0 } else { 3.0 };
+    let errors_bounds: Vec<(f32, (i32, i32))> = par_map(
+        n,
+        |i| {
+            let span = shape.span(tile(i));
+            let z: Vec<f32> = (0..span.vertex_count() as u32)
+                .map(|v| {
+                    let (c, r) = span.vertex_pos(v);
+                    quantised.at(c, r)
+                })
+                .collect();
+            let (mut err, mut lo, mut hi) = (0f32, f32::MAX, f32::MIN);
+            for r in span.rows.0..=span.rows.1 {
+                for c in span.cols.0..=span.cols.1 {
+                    let h = orig.at(c, r);
+                    lo = lo.min(h);
+                    hi = hi.max(h);
+                    err = err.max((grid_height(&span, &z, c as f32, r as f32) - h).abs());
+                }
             }
-        }
-        grid_err[i as usize] = err;
-        bounds[i as usize] = ((lo * inv).floor() as i32, (hi * inv).ceil() as i32);
-        if i % 64 == 0 {
-            progress(f64::from(i) / n as f64 / steps);
-        }
-    }
+            (err, ((lo * inv).floor() as i32, (hi * inv).ceil() as i32))
+        },
+        |f| progress(f / steps),
+    );
+    let grid_err: Vec<f32> = errors_bounds.iter().map(|e| e.0).collect();
     let tol = Tolerances::from_grid_errors(shape, &grid_err);
-    let mut records = vec![TileRecord::default(); n];
-    let mut data = Vec::new();
-    let mut done = 0usize;
     // Every tile's mesh first: an `rqt` tile's curtains depend on its neighbours' borders.
-    let meshes: Vec<PyramidMesh> = (0..n as u32)
-        .map(|i| {
-            mesh_tile(
-                kind,
-                shape,
-                shape.tile(i).unwrap_or(TileId::ROOT),
-                &zq,
-                &quantised,
-                &tol,
-            )
-        })
-        .collect();
+    let meshes: Vec<PyramidMesh> = par_map(
+        n,
+        |i| mesh_tile(kind, shape, tile(i), &zq, &quantised, &tol),
+        |f| {
+            if kind != MeshKind::Grid {
+                progress((1.0 + f) / steps)
+            }
+        },
+    );
     let side = |t: TileId, e: Edge| -> Polyline {
         let m = &meshes[shape.index(t) as usize];
         let span = shape.span(t);
@@ -149,85 +144,113 @@ pub fn build_pyramid(
             (p, m.z[v])
         })
     };
-    // Finest level first, so that children's errors are known when parents saturate.
+    // Each tile's own error, patch blob and patch triangles.
+    let parts: Vec<(f32, Vec<u8>, u32)> = par_map(
+        n,
+        |i| {
+            let t = tile(i);
+            let m = &meshes[i];
+            match &m.irregular {
+                None => {
+                    // A grid tile, also in an `rqt` store (one the grid's border clips):
+                    // paper 001's patches, which close its cracks against `rqt` tiles too,
+                    // since their sides that can meet it keep every lattice vertex
+                    // ([`crate::lod::tile::mesh::pyramid`]).
+                    let sample = |c: u32, r: u32| zq[(r * w + c) as usize];
+                    let patches = if kind == MeshKind::Rqt {
+                        grid_patches_in_rqt(shape, t, &m.z, sample)
+                    } else {
+                        find_patches(shape, t, &m.z, sample)
+                    };
+                    let pblob = encode_patches(shape, t, &m.z, &patches);
+                    (grid_err[i], pblob, patches.triangle_count() as u32)
+                }
+                Some(irr) => {
+                    let err = irregular_error(shape, t, irr, &m.z, quantum, &orig);
+                    if kind != MeshKind::Rqt {
+                        return (err, Vec::new(), 0);
+                    }
+                    // Curtains on every side with a neighbour.
+                    let sides: Vec<(Polyline, SideCurtain)> = EDGES
+                        .into_iter()
+                        .filter(|&e| shape.neighbour(t, e).is_some())
+                        .map(|e| {
+                            let own = side(t, e);
+                            let others: Vec<Polyline> = across(shape, t, e)
+                                .into_iter()
+                                .map(|(n, b)| side(n, b))
+                                .collect();
+                            let c = side_curtain(&own, &others);
+                            (own, c)
+                        })
+                        .collect();
+                    let curtain_tris: usize = sides
+                        .iter()
+                        .flat_map(|(own, segs)| {
+                            segs.iter()
+                                .enumerate()
+                                .filter_map(move |(s, b)| b.as_ref().map(|b| fan(own, s, b).len()))
+                        })
+                        .sum();
+                    (err, encode_curtains(&sides), curtain_tris as u32)
+                }
+            }
+        },
+        |f| progress((steps - 1.0 + f) / steps),
+    );
+    // The records, finest level first, so that children's errors are known when parents
+    // saturate; the blobs back to back in that order.
+    let mut records = vec![TileRecord::default(); n];
+    let mut data = Vec::new();
     for level in (0..=shape.depth()).rev() {
         let (nx, ny) = shape.level_dims(level);
         for y in 0..ny {
             for x in 0..nx {
                 let t = TileId { level, x, y };
                 let i = shape.index(t) as usize;
-                let m = &meshes[i];
-                let mut curtain_tris = 0usize;
-                let (mut err, patches, pblob) = match &m.irregular {
-                    None => {
-                        // A grid tile, also in an `rqt` store (one the grid's border clips):
-                        // paper 001's patches, which close its cracks against `rqt` tiles too,
-                        // since their sides that can meet it keep every lattice vertex
-                        // ([`crate::lod::tile::mesh::pyramid`]).
-                        let sample = |c: u32, r: u32| zq[(r * w + c) as usize];
-                        let patches = if kind == MeshKind::Rqt {
-                            grid_patches_in_rqt(shape, t, &m.z, sample)
-                        } else {
-                            find_patches(shape, t, &m.z, sample)
-                        };
-                        let pblob = encode_patches(shape, t, &m.z, &patches);
-                        (grid_err[i], patches, pblob)
-                    }
-                    Some(irr) => {
-                        let err = irregular_error(shape, t, irr, &m.z, quantum, &orig);
-                        if kind == MeshKind::Rqt {
-                            // Curtains on every side with a neighbour.
-                            let sides: Vec<(Polyline, SideCurtain)> = EDGES
-                                .into_iter()
-                                .filter(|&e| shape.neighbour(t, e).is_some())
-                                .map(|e| {
-                                    let own = side(t, e);
-                                    let others: Vec<Polyline> = across(shape, t, e)
-                                        .into_iter()
-                                        .map(|(n, b)| side(n, b))
-                                        .collect();
-                                    let c = side_curtain(&own, &others);
-                                    (own, c)
-                                })
-                                .collect();
-                            curtain_tris = sides
-                                .iter()
-                                .flat_map(|(own, segs)| {
-                                    segs.iter().enumerate().filter_map(move |(s, b)| {
-                                        b.as_ref().map(|b| fan(own, s, b).len())
-                                    })
-                                })
-                                .sum();
-                            (err, Patches::default(), encode_curtains(&sides))
-                        } else {
-                            (err, Patches::default(), Vec::new())
-                        }
-                    }
-                };
-                let mesh = m.blob.clone();
+                let (own_err, pblob, patch_tris) = &parts[i];
+                let mut err = *own_err;
                 for c in shape.children(t) {
                     err = err.max(records[shape.index(c) as usize].error);
                 }
+                let mesh = &meshes[i].blob;
                 records[i] = TileRecord {
                     offset: data.len() as u64,
                     mesh_len: mesh.len() as u32,
                     patch_len: pblob.len() as u32,
                     error: err,
-                    zmin: bounds[i].0,
-                    zmax: bounds[i].1,
-                    patch_tris: (patches.triangle_count() + curtain_tris) as u32,
+                    zmin: errors_bounds[i].1.0,
+                    zmax: errors_bounds[i].1.1,
+                    patch_tris: *patch_tris,
                 };
-                data.extend_from_slice(&mesh);
-                data.extend_from_slice(&pblob);
-                done += 1;
-                if done.is_multiple_of(16) {
-                    progress((steps - 1.0 + done as f64 / n as f64) / steps);
-                }
+                data.extend_from_slice(mesh);
+                data.extend_from_slice(pblob);
             }
         }
     }
     progress(1.0);
     TilePyramid { records, data }
+}
+
+/// `f(0) .. f(n - 1)` in order, computed on every core (rayon's pool), in rounds between which
+/// `progress` receives the fraction done.
+fn par_map<T: Send>(
+    n: usize,
+    f: impl Fn(usize) -> T + Sync + Send,
+    mut progress: impl FnMut(f64),
+) -> Vec<T> {
+    use rayon::prelude::*;
+    const ROUNDS: usize = 32;
+    let step = n.div_ceil(ROUNDS).max(1);
+    let mut out = Vec::with_capacity(n);
+    let mut start = 0;
+    while start < n {
+        let end = (start + step).min(n);
+        out.par_extend((start..end).into_par_iter().map(&f));
+        start = end;
+        progress(start as f64 / n as f64);
+    }
+    out
 }
 
 /// The patches of grid tile `t` (vertex heights `z`, finer samples `sample`) in an `rqt` store:
