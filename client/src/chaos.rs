@@ -1,4 +1,4 @@
-//! `relief-client chaos`: the replica drill of issue 17, against any deployment behind a load
+//! `relief-client chaos`: the deployment's replica drill, against any deployment behind a load
 //! balancer. Sessions (half vertex, half tiles) fly the standard loop in lock step (each pose
 //! sent when the last is answered, so that every pose is served and a run's final cuts do not
 //! depend on timing), each from its own phase; a prober asks `POST /v1/query` through the same

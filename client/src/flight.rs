@@ -35,7 +35,7 @@ impl FlightLog {
     /// Applies deltas until a complete one reflects pose `seq`, recording each as it arrives
     /// (not all at the end, as collecting them with [`Session::wait_for_pose`] would: that put
     /// every byte of a late answer into the second the wait ended, and overstated the latency
-    /// of the poses answered on the way; issue 18).
+    /// of the poses answered on the way).
     async fn await_pose(
         &mut self,
         session: &mut Session,

@@ -1,6 +1,6 @@
 //! Software prefetch: a hint that a cache line will be read soon, so that the loads of work
-//! queued ahead overlap with the work at hand (issue 11: a loaded server finds each session's
-//! state out of the caches).
+//! queued ahead overlap with the work at hand (a loaded server finds each session's state out
+//! of the caches).
 #![allow(unsafe_code)] // Reason: the x86-64 prefetch instruction is only reachable through an intrinsic that is `unsafe` to call.
 
 /// Hints that the cache line holding `*r` will be read soon (into every level of the cache). A

@@ -7,7 +7,8 @@
 //!   estimates that start at 1/2 and move towards each bit coded, one fast (1/8 of the way) and
 //!   one slow (1/64): the fast one follows a session's changing statistics, the slow one keeps
 //!   precision where they hold still (the mean stays within 35..=4061 by itself). On recorded
-//!   streams this beat a single rate of 1/16 by 0.02 bytes a split (issue 11, "Bytes").
+//!   streams this beat a single rate of 1/16 by 0.02 bytes a split (`docs/vertex-stream.md`,
+//!   "Bytes per split").
 //! - **Direct bits**: the range halves per bit, up to 16 bits in one step.
 //! - **Values** ([`Value`]): an unsigned integer as its bucket `b` (the bit length of `v + 1`,
 //!   minus one) in unary, one adaptive bit per unary position, then the `b` bits of `v + 1`
@@ -36,7 +37,7 @@ const TOP: u32 = 1 << 24;
 /// The largest bucket a [`Value`] codes: values are below `2^MAX_BUCKET - 1`. The delta body's
 /// largest values are zigzag-mapped `i32` details (below `2^32`, bucket 32 at most), so 33
 /// buckets are room enough, and a model is small enough (528 bytes) for a session to keep its
-/// models (issue 11).
+/// models.
 pub const MAX_BUCKET: u32 = 33;
 /// The largest value a [`Value`] codes.
 pub const MAX_VALUE: u64 = (1 << MAX_BUCKET) - 2;
@@ -65,7 +66,7 @@ fn adapt(p: u16, bit: bool, shift: u32) -> u16 {
     // 0, `t = 4096` gives `p + (4096 - p) >> shift`; for a 1, `t = 2^shift - 1` gives exactly
     // `p - p >> shift` (with `p = q 2^shift + r`, `2^shift - 1 - p` floors to `-q`). One step
     // for both bits, and the target a select, not a branch: `if bit` was one, mispredicted
-    // about one bit in three on the server (issue 11).
+    // about one bit in three on the server.
     let mask = 0i32.wrapping_sub(bit as i32);
     let target = PROB_ONE as i32 ^ ((PROB_ONE as i32 ^ ((1 << shift) - 1)) & mask);
     (p as i32 + ((target - p as i32) >> shift)) as u16
@@ -417,7 +418,7 @@ mod tests {
     }
 
     /// The stream stays the one clients decode: a change for speed must not change a byte of
-    /// it (these figures come from the coder before issue 11's branch-free pass). 200,000
+    /// it (these figures come from the coder before c384569 made its bits branch-free). 200,000
     /// symbols of every kind, with skewed bits; the stream decodes, and has 0xFF bytes for
     /// carries to ripple through.
     #[test]

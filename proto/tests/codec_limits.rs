@@ -1,5 +1,5 @@
-//! Decoding untrusted frames never allocates beyond the codec's limit (issue 2: "decoding random
-//! bytes never panics and never allocates beyond the limit").
+//! Decoding untrusted frames never allocates beyond the codec's limit (the codec's promise:
+//! "decoding random bytes never panics and never allocates beyond the limit").
 //!
 //! A counting global allocator records the largest single allocation made by the decoding thread
 //! while it decodes random and adversarial frames; it must stay within the frame limit.

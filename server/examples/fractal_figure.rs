@@ -1,4 +1,4 @@
-//! Figures of paper 002's fractal-dimension region tree (issue 13) on the shared real DEMs.
+//! Figures of paper 002's fractal-dimension region tree on the shared real DEMs.
 //!
 //! ```text
 //! cargo run --release -p relief-server --example fractal_figure -- OUTDIR

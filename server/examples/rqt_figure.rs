@@ -1,4 +1,4 @@
-//! Figures of the `rqt` tile mesh (issue 13, paper 002) on the shared real DEMs: triangles and
+//! Figures of the `rqt` tile mesh (paper 002) on the shared real DEMs: triangles and
 //! time per 65 x 65 tile and per 257 x 257 crop at a few tolerances, and the comparison with
 //! pymartini (`server/tools/pymartini_compare.py`) at the same measured maximum error.
 //!

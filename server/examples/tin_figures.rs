@@ -1,4 +1,4 @@
-//! Figures for the `tin` tile mesh (issue 13; paper 003): what shared borders cost, and how
+//! Figures for the `tin` tile mesh (paper 003): what shared borders cost, and how
 //! many triangles and how much time a tile takes, on crops of real DEMs.
 //!
 //! `cargo run --release -p relief-server --example tin_figures -- FIGURE DEM.png...`

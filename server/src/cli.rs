@@ -226,7 +226,7 @@ enum BenchCommand {
         #[command(flatten)]
         dem_args: DemArgs,
     },
-    /// Time the query library on one core (issue 16): rays from the standard path's cameras,
+    /// Time the query library on one core: rays from the standard path's cameras,
     /// half grazing (1-5 degrees down), half steep, cast by the max-mip pyramid and by the
     /// brute-force march in the same run (every answer must agree; the command fails if one
     /// does not), and heights, HAT/HOT and lines of sight per second.

@@ -186,7 +186,7 @@ mod tests {
 
     #[test]
     fn a_quantum_that_would_corrupt_heights_is_refused() {
-        // Issue 12: at 1e-9 m every height became 2.147 m (clamped), at 1e9 m 0 m.
+        // Hostile input: at 1e-9 m every height became 2.147 m (clamped), at 1e9 m 0 m.
         let d = crate::dem::embedded_default().unwrap();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("q.relief");

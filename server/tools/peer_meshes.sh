@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Relief's adaptive tile meshes against their peers, side by side in one run (issue 13):
+# Relief's adaptive tile meshes against their peers, side by side in one run:
 # `rqt` against pymartini (mapbox martini's RTIN) and `tin` against pydelatin (hmm's greedy
 # insertion), on crops of the real DEMs in ../shared/dem, each pair at the same maximum error
 # measured by the same brute-force oracle (relief-server's `TriMesh::max_error`).

@@ -1,4 +1,4 @@
-// Relief's browser client (issue 15): a tile session over /v1/stream, decoded and checked by
+// Relief's browser client: a tile session over /v1/stream, decoded and checked by
 // relief-proto compiled to WebAssembly (/page/pkg/, built by web/build-wasm.sh), drawn with
 // WebGL2. The page does no stitching: each tile arrives with its crack patches, and it draws
 // the triangles the wasm hands it.

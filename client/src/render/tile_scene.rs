@@ -4,7 +4,7 @@
 //! (`tiles.rs`) uploads a tile once when it first becomes active and keeps its buffers while the
 //! mirror holds it (active or cached), so only tiles new to the client cost an upload.
 //!
-//! **Morph** (issue 10; the pop at a tile switch measured 1.8 px on synthetic:4097 and 3.8 px
+//! **Morph** (the pop at a tile switch measured 1.8 px on synthetic:4097 and 3.8 px
 //! on fuji_srtm3). Every vertex also carries its morph target
 //! ([`morph_targets`](relief_proto::tile::geometry::morph_targets): its height on the parent's
 //! mesh inside the tile, its own height on the tile's boundary, so seams, patches and skirts

@@ -260,7 +260,7 @@ mod tests {
 
     #[test]
     fn protocol_and_invalid_text_closes_are_fatal_and_a_bare_close_is_retried() {
-        // Issue 12: the server now closes RFC 6455 violations with 1002 and invalid UTF-8 with
+        // The hardened server closes RFC 6455 violations with 1002 and invalid UTF-8 with
         // 1007; retrying would only repeat the fault. A close with no code (1005), or a
         // restart (1012), is worth retrying.
         for code in [1002, 1007, 4009] {

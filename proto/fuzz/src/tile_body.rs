@@ -95,7 +95,7 @@ fn tile_blobs(shape: &TileShape, t: TileId, blobs: &TileBlobs) {
     assert_eq!(decode_patches(shape, t, &z, &blob), Ok(patches));
 }
 
-/// Decodes an `rqt` tile's patch blob as its crack curtains (issue 13): the triangles name the
+/// Decodes an `rqt` tile's patch blob as its crack curtains: the triangles name the
 /// tile's vertices and points on its sides; the curtains re-encode no longer than the input
 /// and decode the same.
 fn curtain_round_trip(shape: &TileShape, t: TileId, m: &IrregularMesh, z: &[i32], bytes: &[u8]) {
@@ -255,7 +255,7 @@ pub fn seeds() -> Vec<(String, Vec<u8>)> {
             out.push((format!("{name}_{w}x{h}"), header.with(&d.encode())));
         }
     }
-    // An `rqt` pyramid (square tiles) split once, with curtains (issue 13).
+    // An `rqt` pyramid (square tiles) split once, with curtains.
     let (w, h, param) = (33, 33, 2);
     let shape = TileShape::new(w, h, 2 << param).expect("a small pyramid");
     let split = TileDelta {

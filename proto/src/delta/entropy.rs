@@ -1,5 +1,5 @@
-//! The order-0 entropy of a run's split payloads under the delta body's own contexts (issue 11,
-//! "Bytes"): the benchmark's `split_entropy_bytes`.
+//! The order-0 entropy of a run's split payloads under the delta body's own contexts
+//! (`docs/vertex-stream.md`, "Bytes per split"): the benchmark's `split_entropy_bytes`.
 //!
 //! The body's range coder keeps one adaptive model per context: per level and component for the
 //! details, one for the error residuals, one for the split positions' level steps and one for

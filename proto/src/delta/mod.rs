@@ -32,14 +32,14 @@
 //! A delta with neither merges nor splits has the empty body (no bytes).
 //!
 //! The models learn each context's statistics as the session goes, so a body costs close to the
-//! entropy of its symbols in these contexts (issue 11, "Bytes"). Decoding checks every index
-//! against the tree and every value against its range, refuses counts beyond the tree's inner
-//! nodes, stops at the first entry that needs bytes the body does not have, and reserves room
-//! for at most [`RESERVE_MAX`] entries up front: beyond that, lists grow only as their entries
-//! decode.
+//! entropy of its symbols in these contexts (`docs/vertex-stream.md`, "Bytes per split"). Decoding
+//! checks every index against the tree and every value against its range, refuses counts beyond the
+//! tree's inner nodes, stops at the first entry that needs bytes the body does not have, and
+//! reserves room for at most [`RESERVE_MAX`] entries up front: beyond that, lists grow only as
+//! their entries decode.
 //!
 //! [`SplitEntropy`] measures what a run's split payloads carry under this coder's model, for the
-//! benchmark (issue 11, "Bytes").
+//! benchmark (`docs/vertex-stream.md`, "Bytes per split").
 
 mod entropy;
 mod order;
@@ -354,7 +354,7 @@ impl BodyModels {
 
 /// The most entries [`Delta::unpack_body`] reserves room for before decoding them. A count that
 /// passes the bit check can still claim one entry per bit of the body, and reserving for all of
-/// them made a 1 MiB body of garbage take 335 MB before it was refused (issue 12).
+/// them made a 1 MiB body of garbage take 335 MB before it was refused.
 pub const RESERVE_MAX: u64 = 1 << 12;
 
 /// Room to reserve for a list whose count a body of `body_bytes` claims: no more than
@@ -760,10 +760,10 @@ pub(crate) mod tests {
         );
     }
 
-    /// Issue 12: a count that the body could hold, in a body of garbage, reserved room for every
-    /// claimed entry (a 1 MiB body, about 335 MB) before its second entry failed to decode.
+    /// Hostile input: a count that the body could hold, in a body of garbage, reserved room for
+    /// every claimed entry (a 1 MiB body, about 335 MB) before its second entry failed to decode.
     #[test]
-    fn issue_12_lying_counts_reserve_little() {
+    fn lying_counts_reserve_little() {
         assert_eq!(reserve(u64::MAX, 1 << 20), RESERVE_MAX as usize);
         assert_eq!(reserve(17, 1 << 20), 17);
         assert_eq!(reserve(154, 8), 64);

@@ -54,7 +54,7 @@ pub enum TileDeltaError {
 
 /// The most tiles [`TileDelta::decode`] reserves room for in a list before decoding them. A
 /// count that passes the length check can still claim one tile per byte left, and reserving for
-/// all of them made a 2 MiB body of garbage reserve 117 MB before it was refused (issue 12).
+/// all of them made a 2 MiB body of garbage reserve 117 MB before it was refused.
 pub const RESERVE_MAX: usize = 1 << 12;
 
 /// Appends `v` as an unsigned LEB128 varint.
@@ -199,10 +199,10 @@ mod tests {
         }
     }
 
-    /// Issue 12: a count that the bytes left could hold, in a body of garbage, reserved room for
-    /// every claimed tile (a 2 MiB body, 117 MB) before the second tile failed to decode.
+    /// Hostile input: a count that the bytes left could hold, in a body of garbage, reserved room
+    /// for every claimed tile (a 2 MiB body, 117 MB) before the second tile failed to decode.
     #[test]
-    fn issue_12_lying_counts_reserve_little() {
+    fn lying_counts_reserve_little() {
         let mut body = vec![0];
         put_varint(&mut body, (2 << 20) - 8);
         body.resize(2 << 20, 0);

@@ -1,5 +1,5 @@
 //! `relief-server bench compare`: every stream over the same path at the same *measured* pixel
-//! error (issue 13; DESIGN.md section 7).
+//! error (DESIGN.md section 7).
 //!
 //! For each stream, the threshold tau is tuned until the measured p99 pixel error (the median
 //! over measured frames of each frame's 99th percentile, as `bench lod` and `bench tiles`
@@ -18,7 +18,7 @@
 //! kind and flown at every threshold. Bytes are the messages as they go on the WebSocket, raw
 //! and with each message gzipped.
 //!
-//! The baseline's tiles are also encoded as Cesium quantized-mesh tiles (issue 14's encoder,
+//! The baseline's tiles are also encoded as Cesium quantized-mesh tiles (the standard formats' encoder,
 //! each tile gzipped on its own as a tile server sends it), reported beside it as
 //! `quantized-mesh`: the same tiles, tau and error, in the standard format.
 //!
@@ -148,7 +148,7 @@ pub struct Flown {
     /// Deltas the client could not apply.
     pub desyncs: u64,
     /// For `tiles/grid+skirts`: the same tiles sent as Cesium quantized-mesh tiles (each
-    /// gzipped on its own), the issue's standard-format baseline.
+    /// gzipped on its own), the standard-format baseline.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub quantized_mesh: Option<WireSummary>,
 }
@@ -227,7 +227,7 @@ pub struct CompareReport {
     /// Each stream.
     pub streams: Vec<StreamResult>,
     /// The vertex stream's total gzipped bytes over the baseline's (`tiles/grid+skirts`), at
-    /// the target (the issue's target: at most 0.25).
+    /// the target (at most 0.25).
     pub vertex_over_baseline: Option<f64>,
 }
 

@@ -133,7 +133,7 @@ pub struct LodBenchReport {
     pub split_bytes_mean: f64,
     /// Order-0 entropy of the same deltas' split payloads (positions, details, error residuals)
     /// under the body coder's contexts, bytes per split: what these contexts allow any coder
-    /// (issue 11; [`relief_proto::delta::SplitEntropy`]).
+    /// ([`relief_proto::delta::SplitEntropy`]).
     pub split_entropy_bytes: f64,
     /// The same with the merge positions added, per split: what one static model per context,
     /// fitted to the whole run, would spend on the bodies

@@ -9,7 +9,7 @@
 //! whole batches, without per-query clocks.
 //!
 //! Built with `--features peer-parry`, the same rays are also cast by parry3d's `HeightField`
-//! (the peer of issue 16), built over the same heights; the feature is off by default, so
+//! (the query benchmark's peer), built over the same heights; the feature is off by default, so
 //! that the server does not ship parry3d.
 
 use super::stats::{median, quantile};

@@ -1,5 +1,5 @@
 //! `relief-server bench sessions`: many vertex-stream sessions on one core, in process, the way
-//! a loaded server runs them (issue 11's load targets).
+//! a loaded server runs them (the load targets of `docs/vertex-stream.md`).
 //!
 //! Each session flies its own seeded random loop, the paths of `relief-client load --path
 //! random` (session `i` flies [`random_path`]`(seed + i)`, with the ground heights from the

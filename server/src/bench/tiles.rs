@@ -1,5 +1,5 @@
 //! `relief-server bench tiles`: the tile stream over a camera path, in process (DESIGN.md
-//! section 7; issue 10).
+//! section 7).
 //!
 //! One tile session flies the path with an unlimited client cache. For every pose the server
 //! selects the restricted tile set and encodes the delta as it goes on the wire; a client mirror

@@ -1,4 +1,4 @@
-//! The queries against brute force on random small DEMs, and the edge cases of issue 16.
+//! The queries against brute force on random small DEMs, and their edge cases.
 
 use super::ray::GridRay;
 use super::*;

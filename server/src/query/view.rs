@@ -1,6 +1,6 @@
 //! A picture of the terrain from a camera, ray-cast with no triangles: one ray per pixel
 //! through the client renderer's pinhole, its first hit on the exact surface shaded as the
-//! renderer shades a fragment (`GET /v1/raycast.png`; issue 16). A thumbnail, and a reference
+//! renderer shades a fragment (`GET /v1/raycast.png`). A thumbnail, and a reference
 //! that owes nothing to the LOD mesh or the GPU, for the renderer's shots to be compared with.
 //!
 //! **Rays.** The camera basis is [`relief_proto::view::ViewState`]'s and the client's

@@ -1,7 +1,7 @@
 //! The browser pages: `GET /` (and `/view`), Relief's own thin client, which streams tiles over
-//! `/v1/stream` and draws them in WebGL2 (issue 15); `GET /cesium/`, a CesiumJS viewer over the quantized-mesh terrain, and
-//! `GET /maplibre/` (`?encoding=terrarium` for Terrarium tiles), a MapLibre GL JS map in
-//! terrain mode over the terrain-RGB tiles, both over this server's terrain.
+//! `/v1/stream` and draws them in WebGL2; `GET /cesium/`, a CesiumJS viewer over the quantized-mesh
+//! terrain, and `GET /maplibre/` (`?encoding=terrarium` for Terrarium tiles), a MapLibre GL JS map
+//! in terrain mode over the terrain-RGB tiles, both over this server's terrain.
 //!
 //! The pages (`web/page/`, `web/cesium/`, `web/maplibre/`) are compiled into the binary, and so
 //! is Relief's page's WebAssembly (`web/page/pkg/`, relief-proto built by `web/build-wasm.sh`

@@ -251,7 +251,7 @@ mod tests {
 
     #[test]
     fn one_dem_in_two_places_builds_byte_identical_stores() {
-        // Issue 17: replicas that fetched the same DEM into different folders, at different
+        // Deployment: replicas that fetched the same DEM into different folders, at different
         // times, must build the same store and so serve the same terrain id.
         let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
         let fa = a.path().join("fuji.tif");
@@ -307,7 +307,7 @@ mod tests {
 
     #[test]
     fn a_foreign_store_over_a_cache_entry_is_rebuilt_not_served() {
-        // Issue 12: a valid store of another terrain, copied over the cached file's name.
+        // Hostile input: a valid store of another terrain, copied over the cached file's name.
         let dir = tempfile::tempdir().unwrap();
         let path = cached_store_path(dir.path(), &[dem::EMBEDDED_SPEC], &LoadOptions::default());
         let other = dem::load("synthetic:65:3", &LoadOptions::default()).unwrap();
@@ -320,7 +320,7 @@ mod tests {
 
     #[test]
     fn the_served_store_is_a_private_copy() {
-        // Issue 12: truncating or overwriting the store file under the server changes nothing
+        // Hostile input: truncating or overwriting the store file under the server changes nothing
         // it serves.
         let dir = tempfile::tempdir().unwrap();
         let file = dir.path().join("s.relief");

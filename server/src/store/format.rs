@@ -21,8 +21,8 @@ use std::io::Write;
 
 /// File magic: the first eight bytes of every store.
 pub const MAGIC: &[u8; 8] = b"RELIEFST";
-/// The format version this build writes and reads. 3: quad-adjacent node records. 4 (issue 13
-/// and 15): a grid tile's raised patches also close T-junctions (a fine vertex exactly on the
+/// The format version this build writes and reads. 3: quad-adjacent node records. 4: a grid
+/// tile's raised patches also close T-junctions (a fine vertex exactly on the
 /// coarse edge), and an `rqt` pyramid's patch blobs hold its crack curtains (version 3 left them
 /// empty), so a version-3 store is refused with a call to rebuild it. 5: the `grid` tiles of
 /// an `rqt` pyramid (those the grid's border clips) carry their patches, and the `rqt` sides

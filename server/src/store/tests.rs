@@ -72,7 +72,7 @@ fn corrupt_stores_are_refused() {
     let e = expect_err(&bad, &flipped);
     assert!(matches!(e, StoreError::Corrupt(_)), "{e}");
 
-    // The tile sections (issue 10): a flipped byte in the last tile blob, and a tile record
+    // The tile sections: a flipped byte in the last tile blob, and a tile record
     // pointing past the blobs with its checksums recomputed, are both refused.
     let mut tile = good.clone();
     let header = format::Header::parse(&good[..format::HEADER_LEN], good.len() as u64).unwrap();
@@ -103,7 +103,7 @@ fn corrupt_stores_are_refused() {
     let e = expect_err(&bad, &ver);
     assert!(matches!(e, StoreError::Version { found: 9, .. }), "{e}");
     assert!(e.to_string().contains("rebuild"));
-    // Issue 13: a version-3 store (rqt tiles without crack curtains) is refused the same way.
+    // A version-3 store (rqt tiles without crack curtains) is refused the same way.
     let mut v3 = good.clone();
     v3[8..12].copy_from_slice(&3u32.to_le_bytes());
     let e = expect_err(&bad, &v3);

@@ -30,10 +30,10 @@ use crate::lod::tile::mesh::pyramid::{PyramidMesh, Tolerances, irregular_error, 
 use bytemuck::{Pod, Zeroable};
 use relief_proto::tile::body::curtain::encode_curtains;
 use relief_proto::tile::body::{
-    MeshKind, Patches, encode_patches, find_patches, grid_height, skirt_triangle_count,
+    MeshKind, Patches, cell_height, encode_patches, find_patches, skirt_triangle_count,
 };
 use relief_proto::tile::{EDGES, Edge};
-use relief_proto::tile::{TileId, TileShape};
+use relief_proto::tile::{TileId, TileShape, TileSpan};
 
 /// One tile's entry in the store's `tiles` section (32 bytes, little-endian).
 #[repr(C)]
@@ -105,15 +105,7 @@ pub fn build_pyramid(
                     quantised.at(c, r)
                 })
                 .collect();
-            let (mut err, mut lo, mut hi) = (0f32, f32::MAX, f32::MIN);
-            for r in span.rows.0..=span.rows.1 {
-                for c in span.cols.0..=span.cols.1 {
-                    let h = orig.at(c, r);
-                    lo = lo.min(h);
-                    hi = hi.max(h);
-                    err = err.max((grid_height(&span, &z, c as f32, r as f32) - h).abs());
-                }
-            }
+            let (err, lo, hi) = grid_error_bounds(&span, &z, &orig);
             (err, ((lo * inv).floor() as i32, (hi * inv).ceil() as i32))
         },
         |f| progress(f / steps),
@@ -232,6 +224,41 @@ pub fn build_pyramid(
     TilePyramid { records, data }
 }
 
+/// The grid mesh over `span` (vertex heights `z`) against the samples `orig` it covers: the
+/// largest vertical distance, and the lowest and highest sample. The same numbers as
+/// [`relief_proto::tile::body::grid_height`] at every sample, computed a cell at a time: each sample falls in the cell
+/// `grid_height` puts it in (the stride divides exactly in `f32`), with the same `u` and `v`,
+/// so the store's bytes do not change; the cell's lookups are made once, not per sample.
+fn grid_error_bounds(span: &TileSpan, z: &[f32], orig: &HeightGrid<'_>) -> (f32, f32, f32) {
+    let (nx, ny) = (span.nx(), span.ny());
+    let w = nx as usize;
+    let (mut err, mut lo, mut hi) = (0f32, f32::MAX, f32::MIN);
+    for j in 0..ny - 1 {
+        let (r0, r1) = (span.row(j), span.row(j + 1));
+        // A sample on a cell's far side belongs to the next cell, except on the last.
+        let r_last = if j == ny - 2 { r1 } else { r1 - 1 };
+        let (r0f, r1f) = (r0 as f32, r1 as f32);
+        for r in r0..=r_last {
+            let v = ((r as f32 - r0f) / (r1f - r0f)).clamp(0.0, 1.0);
+            for i in 0..nx - 1 {
+                let (c0, c1) = (span.col(i), span.col(i + 1));
+                let c_last = if i == nx - 2 { c1 } else { c1 - 1 };
+                let (c0f, c1f) = (c0 as f32, c1 as f32);
+                let at = (j * nx + i) as usize;
+                let corners = [z[at], z[at + 1], z[at + w], z[at + w + 1]];
+                for c in c0..=c_last {
+                    let u = ((c as f32 - c0f) / (c1f - c0f)).clamp(0.0, 1.0);
+                    let h = orig.at(c, r);
+                    lo = lo.min(h);
+                    hi = hi.max(h);
+                    err = err.max((cell_height(corners, u, v) - h).abs());
+                }
+            }
+        }
+    }
+    (err, lo, hi)
+}
+
 /// `f(0) .. f(n - 1)` in order, computed on every core (rayon's pool), in rounds between which
 /// `progress` receives the fraction done.
 fn par_map<T: Send>(
@@ -302,6 +329,45 @@ mod tests {
     use relief_proto::tile::geometry::Surface;
     use relief_proto::tile::mirror::TileData;
 
+    #[test]
+    fn grid_errors_by_cell_are_grid_height_at_every_sample() {
+        // A grid whose border clips tiles at every level, so that last cells are narrower.
+        let (w, h) = (151u32, 141u32);
+        let heights: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (c, r) = ((i % w) as f32, (i / w) as f32);
+                (c * 0.37).sin() * 41.0 + (r * 0.23).cos() * 17.0 + (c * r * 0.013).sin() * 5.0
+            })
+            .collect();
+        let orig = HeightGrid::new(w as usize, h as usize, &heights).unwrap();
+        let shape = TileShape::new(w, h, 16).unwrap();
+        for i in 0..shape.tile_count() {
+            let span = shape.span(shape.tile(i).unwrap());
+            let z: Vec<f32> = (0..span.vertex_count() as u32)
+                .map(|v| {
+                    let (c, r) = span.vertex_pos(v);
+                    (orig.at(c, r) * 4.0).round() / 4.0
+                })
+                .collect();
+            let (mut err, mut lo, mut hi) = (0f32, f32::MAX, f32::MIN);
+            for r in span.rows.0..=span.rows.1 {
+                for c in span.cols.0..=span.cols.1 {
+                    let s = orig.at(c, r);
+                    lo = lo.min(s);
+                    hi = hi.max(s);
+                    let g = relief_proto::tile::body::grid_height(&span, &z, c as f32, r as f32);
+                    err = err.max((g - s).abs());
+                }
+            }
+            let by_cell = grid_error_bounds(&span, &z, &orig);
+            assert_eq!(
+                (by_cell.0.to_bits(), by_cell.1, by_cell.2),
+                (err.to_bits(), lo, hi),
+                "tile {i}"
+            );
+        }
+    }
+
     /// For every mesh kind: each tile's blob decodes, and its recorded error bounds the
     /// distance from the decoded mesh (as a client draws it) to every sample it covers.
     #[test]
@@ -351,7 +417,7 @@ mod tests {
         }
     }
 
-    /// Issue 13, `rqt+patches`: every `rqt` tile's curtain blob decodes as a client decodes it
+    /// `rqt+patches`: every `rqt` tile's curtain blob decodes as a client decodes it
     /// (against the decoded mesh alone) to as many triangles as the store counted, over the
     /// tile's own border vertices and points on its sides; tiles with a neighbour have some.
     #[test]

@@ -1,4 +1,4 @@
-//! End to end with the real web clients (issue 14): the server's standard formats read by
+//! End to end with the real web clients: the server's standard formats read by
 //! CesiumJS and MapLibre GL JS in headless Chromium (Debian's `chromium`, driven by
 //! playwright-core), and by an independent quantized-mesh decoder (@loaders.gl/terrain), all
 //! against the real `relief-server` process on 127.0.0.1 serving the store of the committed

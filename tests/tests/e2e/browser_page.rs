@@ -1,4 +1,4 @@
-//! Relief's own browser page (issue 15), `GET /`: a tile session decoded by relief-proto
+//! Relief's own browser page, `GET /`: a tile session decoded by relief-proto
 //! compiled to WebAssembly, drawn with WebGL2, in headless Chromium (Debian's `chromium`,
 //! driven by playwright-core) against the real `relief-server` process on 127.0.0.1.
 //!

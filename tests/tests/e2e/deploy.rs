@@ -1,4 +1,4 @@
-//! `deploy/` (issue 17): the Dockerfile under hadolint, compose.yaml under the compose
+//! `deploy/`: the Dockerfile under hadolint, compose.yaml under the compose
 //! specification's schema, the Kubernetes base under `kubernetes-validate --strict` (each also
 //! shown to refuse a broken copy, so a pass means something), the server configuration they
 //! carry, and the image's root file system as a folder: the static server runs from an empty
@@ -103,7 +103,7 @@ fn the_kubernetes_base_is_strictly_valid_and_complete() {
         let (ok, text) = run(&validate, &[strict, m]);
         assert!(ok && text.contains("passed"), "{name}: {text}");
     }
-    // Kinds the issue asks for.
+    // Kinds a deployment needs.
     let all: String = manifests
         .iter()
         .map(|m| std::fs::read_to_string(m).unwrap())
@@ -199,7 +199,7 @@ async fn the_static_server_serves_from_an_empty_root() {
     let bin = static_server();
     let size = std::fs::metadata(&bin).unwrap().len();
     println!("static relief-server: {size} bytes");
-    assert!(size < 30 << 20, "{size} bytes: the issue's limit is 30 MB");
+    assert!(size < 30 << 20, "{size} bytes: the image's limit is 30 MB");
     assert!(!has_interpreter(&bin), "the server is not static");
     assert!(
         nix::unistd::geteuid().is_root(),

@@ -1,4 +1,4 @@
-//! Hostile input, issue 12 item 3: WebSocket frames that break RFC 6455. Each closes its
+//! Hostile input: WebSocket frames that break RFC 6455. Each closes its
 //! session with 1002 (protocol error) or 1007 (invalid text) and a reason, not a bare
 //! `88 00`, is counted under `relief_errors_total`, and leaves a bystander's latency alone.
 

@@ -1,4 +1,4 @@
-//! Hostile input, issue 12 item 1: request bodies that never finish, and connection floods.
+//! Hostile input: request bodies that never finish, and connection floods.
 //! Bodies are timed out (408) and hold no computation slot; connections are limited in all
 //! and per address, below the open-file limit; `/healthz` answers at the limits; and a
 //! bystander session keeps its latency throughout.

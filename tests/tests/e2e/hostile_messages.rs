@@ -1,4 +1,4 @@
-//! Hostile input over 127.0.0.1 (issues 3 and 12): bad messages and limits each end with a
+//! Hostile input over 127.0.0.1: bad messages and limits each end with a
 //! close frame carrying a clear reason, and a bystander session keeps its latency.
 
 use futures_util::{SinkExt, StreamExt};

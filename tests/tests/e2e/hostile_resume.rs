@@ -1,4 +1,4 @@
-//! Hostile input, issue 12 item 2: resume amplification. A resume hello carrying the full cut
+//! Hostile input: resume amplification. A resume hello carrying the full cut
 //! of synthetic:2049 (175 KB, with a correct digest) used to cost the server 24 MB and 1 s of
 //! CPU, and forty of them delayed a bystander's first delta from 0.2 s to 34 s. Now a resumed
 //! session costs memory in proportion to its snapshot, accounted from the hello; resumes are

@@ -1,4 +1,4 @@
-//! Hostile input, issue 12 items 4-6, against the real binary: a store changed under the
+//! Hostile input, against the real binary: a store changed under the
 //! server (truncated, overwritten), a z quantum that would corrupt heights, and a foreign
 //! store copied over a cache entry.
 

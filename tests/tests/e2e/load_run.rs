@@ -1,4 +1,4 @@
-//! The load generator against the real server on 127.0.0.1 (issue 5): a short run of 50
+//! The load generator against the real server on 127.0.0.1: a short run of 50
 //! sessions for 10 s, its report files, and byte counts that agree between client and server.
 
 use relief_client::load::{self, LoadOptions, LoadPath};

@@ -1,4 +1,4 @@
-//! `GET /v1/raycast.png` against `relief-client shot` of the same camera (issue 16): the
+//! `GET /v1/raycast.png` against `relief-client shot` of the same camera: the
 //! ray-cast picture of the exact surface and the rendered LOD mesh must agree within a stated
 //! tolerance, and a camera turned away must not. The shot is drawn on whatever adapter wgpu
 //! finds (Mesa's software Vulkan, lavapipe, in CI), as in `render_gpu.rs`.

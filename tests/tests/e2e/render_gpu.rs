@@ -1,6 +1,6 @@
 //! The wgpu client against the real server, offscreen on whatever adapter wgpu finds (Mesa's
 //! software Vulkan, lavapipe, in CI): a golden image, a crack test in images and a no-pop test
-//! of the geomorph at every split and merge (issue 4).
+//! of the geomorph at every split and merge.
 
 use glam::Vec3;
 use relief_client::render::frame::rgb8;

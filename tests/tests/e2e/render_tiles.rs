@@ -1,5 +1,5 @@
 //! The tile stream drawn by the wgpu client against the real server, offscreen (lavapipe in
-//! CI): the crack test in images along the standard path (issue 10), looking ahead, down and
+//! CI): the crack test in images along the standard path, looking ahead, down and
 //! grazing, on a magenta background. With crack patches, and with skirts, no background shows
 //! through the terrain; with nothing against cracks it does (so the test can fail). It also
 //! prints what paper 001's rule alone (dropped patches, no raised ones) would leave.
@@ -162,7 +162,7 @@ async fn serve(mesh: MeshKind) -> (tempfile::TempDir, TestServer) {
     relief_tests::serve_tiles_of(TILE, mesh).await
 }
 
-/// The adaptive meshes (issue 13) along the same path at tau 1 and 8: `rqt` tiles with their
+/// The adaptive meshes along the same path at tau 1 and 8: `rqt` tiles with their
 /// crack curtains (the session asks for patches) or with skirts, and `tin` tiles with their
 /// shared borders alone (the session asks for patches; `tin` tiles carry none) or with skirts
 /// show no crack; `rqt` tiles with nothing do (so the test can see the cracks that adaptive

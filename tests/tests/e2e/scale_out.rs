@@ -1,4 +1,4 @@
-//! Scale-out (issue 17): three `relief-server` processes on 127.0.0.1, each building its own
+//! Scale-out: three `relief-server` processes on 127.0.0.1, each building its own
 //! store of the embedded terrain into its own cache, behind Debian's HAProxy running
 //! `deploy/haproxy.cfg` (leastconn, no stickiness). Through the balancer, 200 sessions (100
 //! vertex, 100 tiles) fly the standard loop in lock step with `relief_client::chaos`, while a

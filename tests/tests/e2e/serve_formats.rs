@@ -1,4 +1,4 @@
-//! End to end over 127.0.0.1: the standard formats (issue 14) from the real server. Cesium's
+//! End to end over 127.0.0.1: the standard formats from the real server. Cesium's
 //! `layer.json` and quantized-mesh tiles decode to the mesh Relief meant to send, with the
 //! extensions the `Accept` header asks for; terrain-RGB and Terrarium PNG tiles decode to
 //! Relief's heights within half an encoding step; TileJSON describes them; tiles carry ETags,

@@ -1,4 +1,4 @@
-//! End to end over 127.0.0.1: the HTTP API (issue 3): the stateless one-shot round trip,
+//! End to end over 127.0.0.1: the HTTP API: the stateless one-shot round trip,
 //! Prometheus text, terrain metadata, heights, health and readiness, errors as JSON.
 
 use relief_client::http::{HttpError, get_json, post_json, request};
@@ -243,7 +243,7 @@ async fn an_oversized_one_shot_is_refused_with_a_reason() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn fifty_thousand_points_in_ordinary_json_are_answered() {
-    // Issue 12: the documented 50,000 points, written by a JSON library at full precision
+    // Hardening: the documented 50,000 points, written by a JSON library at full precision
     // (over 2 MB), were refused with 400 by a 1 MiB body limit.
     let server = TestServer::start(Limits::default()).await;
     let points: Vec<[f64; 2]> = (0..50_000)

@@ -1,4 +1,4 @@
-//! End to end with the server as a real process (issue 3): killed and restarted under connected
+//! End to end with the server as a real process: killed and restarted under connected
 //! clients, which resume with nothing lost; and SIGTERM, which drains and exits in bounded time.
 
 use nix::sys::signal::Signal;

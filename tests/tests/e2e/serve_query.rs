@@ -1,4 +1,4 @@
-//! End to end over 127.0.0.1: terrain queries (issue 16). `POST /v1/query` in JSON and in the
+//! End to end over 127.0.0.1: terrain queries. `POST /v1/query` in JSON and in the
 //! binary form, and query sessions on `/v1/stream`: answers in order, each equal to the query
 //! library's own answer on the same store, bad items answered item by item, batches over the
 //! limits refused without ending the session, and messages of the wrong kind closed.

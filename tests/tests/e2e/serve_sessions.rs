@@ -1,5 +1,5 @@
 //! End to end over 127.0.0.1: many sessions at once, a dropped connection resumed, a budgeted
-//! session, and a client that stops reading (issue 3).
+//! session, and a client that stops reading.
 
 use futures_util::{SinkExt, StreamExt};
 use relief_client::session::{Session, SessionConfig};

@@ -1,4 +1,4 @@
-//! End to end over 127.0.0.1: the tile stream (issue 10). Tile sessions resume after a dropped
+//! End to end over 127.0.0.1: the tile stream. Tile sessions resume after a dropped
 //! connection, stay consistent under a budget, are never sent a tile twice with an unlimited
 //! cache (and are re-sent evicted tiles with a small one), run beside vertex sessions on one
 //! server; the tile pyramid over HTTP, with ETags, gzip and clear errors for bad requests.
@@ -229,7 +229,7 @@ async fn the_pyramid_over_http_with_etags_gzip_and_clear_errors() {
     server.stop().await;
 }
 
-/// Issue 13, `rqt+patches`: an `rqt` terrain serves its tiles' crack curtains in the patch slot,
+/// `rqt+patches`: an `rqt` terrain serves its tiles' crack curtains in the patch slot,
 /// over HTTP (`?crack=patches`, none with `?crack=skirts`) and in tile sessions asking for
 /// patches, and a client decodes and draws them.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]

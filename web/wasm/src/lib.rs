@@ -1,5 +1,5 @@
 //! `relief-wasm`: the browser page's stream session, `relief-proto` compiled to WebAssembly so
-//! that the page and the server share one codec (issue 15). A session carries either stream:
+//! that the page and the server share one codec. A session carries either stream:
 //! tiles (the default), or the vertex stream (`?stream=vertex`), whose mirror, incremental fans
 //! and GPU records ([`Scene`]) are the wgpu client's own.
 //!

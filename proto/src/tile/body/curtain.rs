@@ -1,4 +1,4 @@
-//! Curtain blobs (issue 13, `rqt+patches`): an `rqt` tile's crack curtains, side by side, as
+//! Curtain blobs (`rqt+patches`): an `rqt` tile's crack curtains, side by side, as
 //! the server finds them (`server/src/lod/tile/mesh/curtain.rs` explains them) and as a client
 //! rebuilds their triangles ([`decode_tile_curtains`]). They travel in the patch slot of an
 //! `rqt` tile's body; `docs/protocol.md` section 15 specifies the bits.

@@ -1,4 +1,4 @@
-//! Irregular tile meshes (issue 13): vertices anywhere on the tile's full-resolution samples,
+//! Irregular tile meshes: vertices anywhere on the tile's full-resolution samples,
 //! and explicit triangles. [`IrregularMesh`] holds both adaptive kinds once decoded; this
 //! encoding is `tin`'s (`rqt` has a shorter one of its own, [`super::rqt`]).
 //!

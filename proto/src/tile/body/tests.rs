@@ -167,7 +167,7 @@ proptest! {
         }
     }
 
-    /// Curtain blobs (issue 13) decoded against a real `rqt` mesh: junk gives an error or
+    /// Curtain blobs decoded against a real `rqt` mesh: junk gives an error or
     /// triangles over the tile's vertices and points on its sides, never a panic.
     #[test]
     fn random_curtain_blobs_never_panic(seed in any::<u64>(), p_active in 0u64..100,

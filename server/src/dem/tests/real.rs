@@ -221,7 +221,7 @@ fn shared_dem_committed_crop_is_the_documented_window_of_the_original() {
     }
 }
 
-/// Issue 14: the `.hgt` reader on a file made from fuji_srtm3, which is SRTM 3" over
+/// The standard formats: the `.hgt` reader on a file made from fuji_srtm3, which is SRTM 3" over
 /// 138..139 E, 35..36 N: the same heights, voids, georeference and spacing as the GeoTIFF.
 #[test]
 #[ignore = "needs ../shared/dem"]
@@ -274,7 +274,7 @@ fn shared_dem_fuji_as_hgt_reads_like_the_geotiff() {
     );
 }
 
-/// Issue 14: real heights (a 256 x 256 window of fuji_srtm3 around the summit) written as
+/// The standard formats: real heights (a 256 x 256 window of fuji_srtm3 around the summit) written as
 /// terrain-RGB and Terrarium tiles by `terrain_rgb::encode_png` read back by the tile reader
 /// within half the encoding's step.
 #[test]

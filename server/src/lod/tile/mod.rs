@@ -7,7 +7,7 @@
 //!   refine coarser neighbours until no two edge-adjacent tiles differ by more than one level;
 //! - [`session`]: one session's active tiles and client cache, and the budgeted, cache-aware
 //!   tile delta from one selection to the next;
-//! - [`mesh`]: tile meshes over a grid of samples and their error (issue 13).
+//! - [`mesh`]: tile meshes over a grid of samples and their error.
 //!
 //! **Screen error.** Cesium's screen-space-error rule: a tile's geometric error (metres, honest
 //! and saturated: `store::tiles`) times the focal length in pixels, over the distance from the

@@ -34,7 +34,7 @@
 //!   rest. A bucket holds its first chunk's pointer itself (24 bytes, the further chunks'
 //!   list boxed): on a server holding many sessions each update starts with its session's
 //!   state out of the caches, and filing into a bucket or draining one then misses on the
-//!   wheel's line and the chunk's, not on a list's buffer between them as well (issue 11: with
+//!   wheel's line and the chunk's, not on a list's buffer between them as well (with
 //!   a list per bucket, filing and draining took 23 % of the server's time at 750 crop
 //!   sessions, and 17 % this way).
 
@@ -245,7 +245,7 @@ impl Pool {
 /// One bucket: its entries in chunks, all full but the last. The first chunk's pointer is held
 /// in the bucket itself, which lies in its wheel: filing into a bucket of up to a chunk of
 /// entries, or draining it, reads the wheel's line and the chunk's, where a list would add the
-/// line of its own buffer, a miss of its own on a loaded server (issue 11). The list of further
+/// line of its own buffer, a miss of its own on a loaded server. The list of further
 /// chunks is boxed, so that a bucket takes 24 bytes.
 #[derive(Default)]
 struct Bucket {

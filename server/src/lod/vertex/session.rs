@@ -601,7 +601,7 @@ impl Bounds {
 
 #[cfg(test)]
 mod tests {
-    //! The four-lane checks against the scalar formulas they replaced (stop 37), in double
+    //! The four-lane checks against the scalar formulas they replaced (commit 399ccb8), in double
     //! precision, kept here as the reference.
     use super::*;
     use crate::lod::vertex::tests::{camera, lens, pose};

@@ -372,7 +372,7 @@ fn a_node_just_split_is_not_evaluated_again_for_its_merge_check() {
 #[test]
 fn prefetching_any_node_reads_nothing_out_of_bounds() {
     // The update prefetches the cut's page and the children's records of groups ahead of
-    // their examination (issue 11): on a grid with odd borders, for every node of every level
+    // their examination: on a grid with odd borders, for every node of every level
     // (leaves and nodes outside the grid included), in an empty cut and a deep one.
     let (w, h) = (37u32, 23u32);
     let dir = tempfile::tempdir().unwrap();

@@ -1,4 +1,4 @@
-//! Shared border points for `tin` tiles (issue 13; paper 003, section 4, "multi-resolution
+//! Shared border points for `tin` tiles (paper 003, section 4, "multi-resolution
 //! modelling"): neighbouring tiles take the same vertices on the edge they share, so their
 //! meshes meet vertex for vertex with no crack, no patch and no skirt.
 //!

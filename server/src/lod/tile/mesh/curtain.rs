@@ -1,4 +1,4 @@
-//! Crack curtains for adaptive tiles (issue 13, `rqt+patches`): paper 001's
+//! Crack curtains for adaptive tiles (`rqt+patches`): paper 001's
 //! patches generalised to tiles whose border vertices differ from their neighbours'.
 //!
 //! Along one side of a tile, in the vertical plane of that side, the tile's border is a polyline
@@ -22,8 +22,8 @@
 //! **T-junctions.** A segment with no bottom point left inside and whose bottom equals it at
 //! both ends has no curtain; one with a bottom point inside keeps its curtain even where that
 //! has no depth: the flat triangles through the neighbour's vertex there close the pixel-wide
-//! holes a rasterizer leaves along a T-junction (issue 13's crack test in images found two such
-//! pixels in 120 frames at tau 1 without them).
+//! holes a rasterizer leaves along a T-junction (the tile meshes' crack test in images found two
+//! such pixels in 120 frames at tau 1 without them).
 //!
 //! **Pruning.** A bottom point strictly below `own` goes where the fan triangle from `a` over
 //! its two neighbours already covers it, when no polyline has it as a vertex or it lies

@@ -1,4 +1,4 @@
-//! Tile meshes over a grid of samples (issue 13): what every mesh kind shares.
+//! Tile meshes over a grid of samples: what every mesh kind shares.
 //!
 //! A mesh kind takes the heights of a tile's samples and a vertical tolerance, and returns a
 //! [`TriMesh`] whose vertices are a subset of the samples and whose triangles cover the tile's

@@ -1,4 +1,4 @@
-//! One tile of the store's pyramid meshed by kind (`build --tile-mesh grid|rqt|tin`, issue 13).
+//! One tile of the store's pyramid meshed by kind (`build --tile-mesh grid|rqt|tin`).
 //!
 //! **Tolerances** ([`Tolerances`]). Each adaptive tile is meshed to the tile's own `grid` error
 //! (its largest distance to the full-resolution samples at its level's stride): "the tile's error

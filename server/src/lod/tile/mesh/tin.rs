@@ -1,4 +1,4 @@
-//! The `tin` tile mesh (issue 13; paper 003, section 3, "the point-selection method"): a
+//! The `tin` tile mesh (paper 003, section 3, "the point-selection method"): a
 //! Delaunay triangulation of a subset of the grid's samples, built by greedy insertion until
 //! every sample lies within a vertical tolerance of the mesh.
 //!

@@ -1,4 +1,4 @@
-//! Stitching `rqt` tiles that share edges (issue 13): a border vertex has one triangle in
+//! Stitching `rqt` tiles that share edges: a border vertex has one triangle in
 //! each tile, so each tile alone gives it a threshold from its own side. Raising both to the
 //! larger and re-saturating, until nothing changes, makes tiles of one level meet vertex for
 //! vertex at any tolerance they share; raising only adds vertices, so each tile stays
