@@ -19,6 +19,19 @@
 #[global_allocator]
 static GLOBAL: tikv_jemallocator::Jemalloc = tikv_jemallocator::Jemalloc;
 
+/// Starts jemalloc's background threads, which give freed memory back to the system about 10 s
+/// after it is freed. Without them jemalloc purges an arena only when it is used again, so a
+/// server that goes quiet after a burst (answers cut off by the write timeout, sessions closed
+/// over the memory budget) would keep the burst's peak resident for good: 1.0 GB held a minute
+/// after 60 clients' 10 MB answers were dropped, against 0.23 GB with them. Where the
+/// allocator cannot (or is not jemalloc), nothing changes.
+pub fn return_freed_memory() {
+    #[cfg(not(target_env = "msvc"))]
+    if let Err(e) = tikv_jemalloc_ctl::background_thread::write(true) {
+        tracing::debug!("jemalloc keeps freed memory until reuse: {e}");
+    }
+}
+
 pub mod bench;
 pub mod cli;
 pub mod dem;

@@ -121,6 +121,7 @@ impl Server {
     /// must be) in the background; `/readyz` turns ready when it is mapped. A terrain that cannot
     /// be opened stops the server with that error.
     pub async fn run(self, shutdown: impl Future<Output = ()>) -> Result<(), ServeError> {
+        crate::return_freed_memory();
         let (src, cache) = (self.config.source.clone(), self.config.cache_dir.clone());
         let mut loader = tokio::task::spawn_blocking(move || source::open_terrain(&src, &cache));
         let state = self.state.clone();

@@ -453,18 +453,33 @@ async fn probe_bystander_under_mixed_load() {
     }
     let attacked = by.measure(Duration::from_secs(10)).await;
     let (l, c) = (lods.stop().await, casts.stop().await);
-    let rss = std::fs::read_to_string(format!("/proc/{}/status", server.child.id()))
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find_map(|l| l.strip_prefix("VmRSS:"))
-                .map(|v| v.trim().to_string())
-        })
-        .unwrap_or_default();
+    let rss = || {
+        std::fs::read_to_string(format!("/proc/{}/status", server.child.id()))
+            .ok()
+            .and_then(|s| {
+                s.lines()
+                    .find_map(|l| l.strip_prefix("VmRSS:"))
+                    .map(|v| v.trim().to_string())
+            })
+            .unwrap_or_default()
+    };
+    let at_10 = rss();
+    // The non-readers stay, reading nothing: what the server still holds 30 s and 60 s later,
+    // and how many connections it has ended (each a connection error).
+    tokio::time::sleep(Duration::from_secs(30)).await;
+    let at_40 = rss();
+    tokio::time::sleep(Duration::from_secs(30)).await;
+    let at_70 = rss();
+    let closed = errors(addr, "connection").await;
     report(
         calm,
         attacked,
-        format!("answered: {l} one-shots, {c} pictures; server RSS after: {rss}"),
+        format!(
+            "answered: {l} one-shots, {c} pictures; server RSS {at_10} at the end of the attack, \
+             {at_40} 30 s later, {at_70} 60 s later; {closed} of {} non-readers' connections \
+             ended by the server",
+            held.len()
+        ),
     );
     drop(held);
     by.stop().await;
