@@ -257,6 +257,31 @@ pub fn hello_frame(version: u32) -> Vec<u8> {
     }))
 }
 
+/// A query session's hello (`StreamKind::Query`).
+pub fn query_hello() -> Vec<u8> {
+    codec::encode(&ClientMsg::Hello(Hello {
+        version: PROTOCOL_VERSION,
+        kind: StreamKind::Query,
+        lens: Lens::STANDARD.into(),
+        tau: 1.0,
+        budget: None,
+        resume: None,
+    }))
+}
+
+/// A query-session message: batch `id` of 40,000 HAT queries over the test terrain (about
+/// 1 MiB; its answer about 1.2 MB).
+pub fn hat_batch(id: u64) -> Vec<u8> {
+    codec::encode(&ClientMsg::Query(relief_proto::query::QueryBatch {
+        id,
+        queries: (0..40_000)
+            .map(|i| relief_proto::query::Query::Hat {
+                at: [(i % 250) as f64 * 40.0, (i / 250) as f64 * 40.0, 3000.0],
+            })
+            .collect(),
+    }))
+}
+
 /// The current protocol's hello.
 pub fn hello() -> Vec<u8> {
     hello_frame(PROTOCOL_VERSION)

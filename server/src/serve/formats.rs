@@ -11,7 +11,7 @@
 //! Tiles never change for a terrain, so each carries a strong `ETag` (terrain id, tile, and
 //! what varies the bytes) and `Cache-Control`; a matching `If-None-Match` gets 304. The router
 //! adds gzip (for the meshes; PNGs are compressed already) and CORS. Tiles are made on request
-//! in a computation slot, off the async threads. A terrain without a georeference answers 404
+//! on the background pool, off the async threads. A terrain without a georeference answers 404
 //! with the reason; a malformed z/x/y gets 400, a tile outside the terrain or too deep 404.
 
 use super::http::{ApiError, ApiQuery, MAX_AGE_S, not_modified};

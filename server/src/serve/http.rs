@@ -240,31 +240,27 @@ pub async fn lod(State(state): State<Arc<AppState>>, body: Body) -> Result<Respo
     // no slot, and a waiting request holds at most one message.
     let body = read_body(&state, body, state.limits.max_message_bytes as usize).await?;
     let max = state.limits.max_message_bytes as usize;
-    let req: LodRequest = state
-        .background
-        .run(move || codec::decode(&body, max))
-        .await
-        .map_err(background_failed)?
-        .map_err(|e| bad(e.to_string()))?;
-    if req.version != PROTOCOL_VERSION {
-        return Err(bad(format!(
-            "protocol version {} is not supported; this server speaks {PROTOCOL_VERSION}",
-            req.version
-        )));
-    }
-    validate::params(&req.lens, req.tau, None).map_err(bad)?;
-    let camera = validate::camera(&req.camera, &t.info).map_err(bad)?;
-    if let Some(b) = &req.base
-        && b.terrain_id != t.info.id
-    {
-        return Err(bad(format!(
-            "the base cut is for terrain {:016x}; this server holds {:016x}",
-            b.terrain_id, t.info.id
-        )));
-    }
     let max_nodes = state.limits.max_cut_nodes as usize;
     let st = state.clone();
+    // Decoding, checks and the step, in one trip to the background pool (one turn in its queue).
     let work = state.background.run(move || -> Result<Vec<u8>, String> {
+        let req: LodRequest = codec::decode(&body, max).map_err(|e| e.to_string())?;
+        if req.version != PROTOCOL_VERSION {
+            return Err(format!(
+                "protocol version {} is not supported; this server speaks {PROTOCOL_VERSION}",
+                req.version
+            ));
+        }
+        validate::params(&req.lens, req.tau, None)?;
+        let camera = validate::camera(&req.camera, &t.info)?;
+        if let Some(b) = &req.base
+            && b.terrain_id != t.info.id
+        {
+            return Err(format!(
+                "the base cut is for terrain {:016x}; this server holds {:016x}",
+                b.terrain_id, t.info.id
+            ));
+        }
         let started = Instant::now();
         let engine = VertexEngine::new(&t.store);
         let shape = &engine.geometry().shape;

@@ -160,36 +160,16 @@ async fn a_client_that_leaves_without_a_close_frame_is_no_protocol_error() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_slow_reader_reads_its_4007_after_what_it_was_sent() {
-    use relief_proto::msg::{ClientMsg, Hello, PROTOCOL_VERSION, StreamKind};
-    use relief_proto::query::{Query, QueryBatch};
     let limits = Limits {
         idle_timeout: Duration::from_secs(1),
         ..Limits::default()
     };
     let server = TestServer::start(limits).await;
     let mut ws = ws_open(lo(1), server.addr).await;
-    let hello = relief_proto::codec::encode(&ClientMsg::Hello(Hello {
-        version: PROTOCOL_VERSION,
-        kind: StreamKind::Query,
-        lens: relief_proto::view::Lens::STANDARD.into(),
-        tau: 1.0,
-        budget: None,
-        resume: None,
-    }));
+    let hello = relief_tests::query_hello();
     ws.write_all(&binary(&hello)).await.unwrap();
     // Batches whose answers (about 1.2 MB each) fill the socket's buffers, and no reading.
-    let batch = |id| {
-        binary(&relief_proto::codec::encode(&ClientMsg::Query(
-            QueryBatch {
-                id,
-                queries: (0..40_000)
-                    .map(|i| Query::Hat {
-                        at: [(i % 250) as f64 * 40.0, (i / 250) as f64 * 40.0, 3000.0],
-                    })
-                    .collect(),
-            },
-        )))
-    };
+    let batch = |id| binary(&relief_tests::hat_batch(id));
     let (mut rd, mut wr) = ws.into_split();
     let writer = tokio::spawn(async move {
         for id in 0..12 {

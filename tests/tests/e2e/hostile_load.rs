@@ -18,8 +18,7 @@
 
 use relief_client::session::SessionConfig;
 use relief_proto::codec;
-use relief_proto::msg::{ClientMsg, Hello, LodRequest, PROTOCOL_VERSION, StreamKind, WireCamera};
-use relief_proto::query::{Query, QueryBatch};
+use relief_proto::msg::{LodRequest, PROTOCOL_VERSION, WireCamera};
 use relief_proto::view::Lens;
 use relief_tests::ChildServer;
 use relief_tests::bystander::{Bystander, Latency};
@@ -348,18 +347,6 @@ async fn errors(addr: SocketAddr, kind: &str) -> u64 {
         .unwrap_or(0)
 }
 
-/// A query session's hello.
-fn query_hello() -> Vec<u8> {
-    codec::encode(&ClientMsg::Hello(Hello {
-        version: PROTOCOL_VERSION,
-        kind: StreamKind::Query,
-        lens: Lens::STANDARD.into(),
-        tau: 1.0,
-        budget: None,
-        resume: None,
-    }))
-}
-
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 #[ignore = "timed: .ci/run runs the `timed_` tests alone, after the suite"]
 async fn timed_query_sessions_that_never_read_stay_within_the_memory_budget_and_are_counted() {
@@ -367,24 +354,17 @@ async fn timed_query_sessions_that_never_read_stay_within_the_memory_budget_and_
     let server = start(addr, &[("RELIEF_MEMORY_BUDGET_MB", "24")]).await;
     let by = bystander(addr).await;
     let calm = by.measure(Duration::from_millis(1500)).await;
-    // 40,000 queries: a batch of about 1 MiB, whose answer is about 1.2 MB.
-    let batch = |id: u64| {
-        codec::encode(&ClientMsg::Query(QueryBatch {
-            id,
-            queries: (0..40_000)
-                .map(|i| Query::Hat {
-                    at: [(i % 250) as f64 * 40.0, (i / 250) as f64 * 40.0, 3000.0],
-                })
-                .collect(),
-        }))
-    };
-    let frames: Vec<Vec<u8>> = (0..6).map(|id| binary(&batch(id))).collect();
+    let frames: Vec<Vec<u8>> = (0..6)
+        .map(|id| binary(&relief_tests::hat_batch(id)))
+        .collect();
     let (socks, attacked) = by
         .during(async {
             let mut socks = Vec::new();
             for i in 0..scaled(20) {
                 let mut ws = ws_open(lo(2 + (i % 8) as u8), addr).await;
-                ws.write_all(&binary(&query_hello())).await.expect("hello");
+                ws.write_all(&binary(&relief_tests::query_hello()))
+                    .await
+                    .expect("hello");
                 socks.push(ws);
             }
             // Every session pipelines its batches and reads nothing.
