@@ -3,8 +3,9 @@
 # does; the README's test command runs this, then `cargo test --release --workspace`):
 # - Debian packages: Mesa's software Vulkan driver (lavapipe) for the renderer's tests, make for
 #   jemalloc, Chromium for the browser tests, HAProxy for the scale-out test, musl-tools for the
-#   static server, python3-venv for the deploy validators; Node.js and npm where `node` is
-#   missing (the browser tests need Node.js 20 or newer);
+#   static server, python3-venv for the deploy validators, GDAL (gdal-bin) and nginx for the
+#   Cloud-Optimized GeoTIFF test (COGs made by gdal_translate, served by range requests);
+#   Node.js and npm where `node` is missing (the browser tests need Node.js 20 or newer);
 # - the npm packages of web/ (pinned by web/package-lock.json);
 # - a check that the browser page's committed WebAssembly (web/page/pkg/) is what
 #   web/build-wasm.sh builds from the sources now;
@@ -18,7 +19,8 @@ cd "$(dirname "$0")/.."
 source .ci/steps.sh
 apt() {
     apt-get update
-    apt-get install -y mesa-vulkan-drivers make chromium haproxy musl-tools python3-venv
+    apt-get install -y mesa-vulkan-drivers make chromium haproxy musl-tools python3-venv \
+        gdal-bin nginx
     command -v node >/dev/null || apt-get install -y nodejs npm
 }
 step "setup: apt" apt

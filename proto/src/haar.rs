@@ -118,11 +118,55 @@ pub fn error_code(metres: f32) -> u8 {
     if metres.is_nan() || metres <= 0.0 {
         return 0;
     }
-    table().partition_point(|&v| v < metres).min(255) as u8
+    // The search starts from the code of the smallest float with the same exponent and top
+    // three mantissa bits: every code before it is below `metres` too, and such a bucket (an
+    // eighth of an octave) holds at most two codes (an eleventh of an octave apart), so a few
+    // steps end it. The same answer as a binary search over the table, faster.
+    let t = table();
+    let mut k = code_hints()[(metres.to_bits() >> 20) as usize] as usize;
+    while k < 255 && t[k] < metres {
+        k += 1;
+    }
+    k as u8
+}
+
+/// For each bucket of positive floats by their top 12 bits (exponent and three mantissa bits),
+/// the first code whose value is not below the bucket's smallest float.
+fn code_hints() -> &'static [u8; 2048] {
+    static HINTS: std::sync::OnceLock<[u8; 2048]> = std::sync::OnceLock::new();
+    HINTS.get_or_init(|| {
+        let t = table();
+        std::array::from_fn(|b| {
+            let low = f32::from_bits((b as u32) << 20);
+            t.partition_point(|&v| v < low).min(255) as u8
+        })
+    })
 }
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn error_codes_are_the_first_code_not_below() {
+        let t = table();
+        let slow = |m: f32| t.partition_point(|&v| v < m).min(255) as u8;
+        // Every code's value, its neighbouring floats, and a sweep of the whole positive range.
+        let mut probes: Vec<f32> = t
+            .iter()
+            .flat_map(|&v| {
+                [
+                    v,
+                    f32::from_bits(v.to_bits() + 1),
+                    f32::from_bits(v.to_bits().saturating_sub(1)),
+                ]
+            })
+            .collect();
+        probes.extend((0..1u32 << 16).map(|i| f32::from_bits(i << 15)));
+        probes.extend([f32::MIN_POSITIVE, 1e-30, 1e30, f32::MAX, f32::INFINITY]);
+        for m in probes.into_iter().filter(|m| *m > 0.0) {
+            assert_eq!(error_code(m), slow(m), "{m:e}");
+        }
+    }
 
     #[test]
     fn error_table_is_exact_octaves_of_its_formula() {

@@ -10,6 +10,7 @@
 //! - [`bench`]: in-process benchmarks.
 //! - [`cli`]: the `relief-server` command line.
 //! - [`serve`]: the streaming server: WebSocket sessions, HTTP API, limits, metrics, drain.
+//! - [`sysmem`]: the memory this process may use (cgroup or machine).
 /// jemalloc instead of the system allocator, for every program that links the server (the
 /// `relief-server` binary, the tests' child server): under session churn glibc malloc keeps the
 /// memory sessions free (a 2-minute soak of 500 cycling sessions: RSS +8 % while live data was
@@ -42,3 +43,4 @@ pub mod preprocess;
 pub mod query;
 pub mod serve;
 pub mod store;
+pub mod sysmem;

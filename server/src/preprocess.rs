@@ -20,9 +20,10 @@ pub struct BuildReport {
 /// The z quantum a DEM gets when none is asked for: 1 m when every valid sample is a whole
 /// number of metres (integer DEMs: lossless), else 0.1 m (at most 5 cm of rounding).
 pub fn default_quantum(dem: &Dem) -> f64 {
+    use rayon::prelude::*;
     let integral = dem
         .heights
-        .iter()
+        .par_iter()
         .enumerate()
         .filter(|&(i, _)| !dem.is_void(i))
         .all(|(_, h)| h.fract() == 0.0);
@@ -102,11 +103,20 @@ pub fn build_cached_store(
 
 /// The source as a store records it: each input by its file name, without its folder, so
 /// that the same DEM built from different places gives byte-identical stores (and one terrain
-/// id across replicas). Mosaics join their inputs with " + ".
+/// id across replicas). A URL is recorded by its last path segment, without the query string
+/// (which may hold a presigned URL's credentials and changes with each signature). Mosaics
+/// join their inputs with " + ".
 fn recorded_source(source: &str) -> String {
     source
         .split(" + ")
         .map(|part| {
+            if crate::dem::is_url(part) {
+                let path = part.split(['?', '#']).next().unwrap_or(part);
+                return match path.rsplit('/').next() {
+                    Some(name) if !name.is_empty() => name.to_string(),
+                    _ => path.to_string(),
+                };
+            }
             let p = Path::new(part);
             match p.file_name() {
                 Some(name) if p.parent().is_some_and(|d| !d.as_os_str().is_empty()) => {
@@ -127,11 +137,16 @@ fn build(
 ) -> Result<BuildReport, StoreError> {
     let (quantum, tile_size, progress) = (opts.quantum, opts.tile_size, opts.progress);
     let quantum = quantum.unwrap_or_else(|| default_quantum(dem));
-    let voids: Vec<bool> = (0..dem.heights.len()).map(|i| dem.is_void(i)).collect();
+    use rayon::prelude::*;
+    let voids: Vec<bool> = (0..dem.heights.len())
+        .into_par_iter()
+        .map(|i| dem.is_void(i))
+        .collect();
     let (lo, hi) = dem
         .heights
-        .iter()
-        .fold((f32::MAX, f32::MIN), |(a, b), &h| (a.min(h), b.max(h)));
+        .par_iter()
+        .fold(|| (f32::MAX, f32::MIN), |(a, b), &h| (a.min(h), b.max(h)))
+        .reduce(|| (f32::MAX, f32::MIN), |x, y| (x.0.min(y.0), x.1.max(y.1)));
     check_quantum(quantum, f64::from(lo), f64::from(hi)).map_err(StoreError::Input)?;
     let bounds = match &dem.georef {
         Some(g) => Some(
@@ -155,16 +170,24 @@ fn build(
             crs: dem.crs.clone(),
             height_min: lo as f64,
             height_max: hi as f64,
-            void_count: voids.iter().filter(|v| **v).count() as u64,
+            void_count: dem.voids.count(),
             cache_key,
             tile_mesh: opts.tile_mesh.name().into(),
             georef: dem.georef.clone(),
             bounds,
         },
     };
-    let bar = crate::bench::progress_bar(progress, 1000, "tree and tiles");
-    let (bytes, tree_s, tiles_s) =
-        write_store(path, &input, |f| bar.set_position((f * 1000.0) as u64))?;
+    let samples = u64::from(dem.width) * u64::from(dem.height);
+    let bar = crate::bench::build_progress_bar(progress, samples);
+    let (bytes, tree_s, tiles_s) = write_store(path, &input, |f| {
+        // write_store gives the tree the first half, the tile pyramid the second.
+        bar.set_message(if f < 0.5 {
+            "vertex tree"
+        } else {
+            "tile pyramid"
+        });
+        bar.set_position((f * samples as f64) as u64)
+    })?;
     bar.finish_and_clear();
     Ok(BuildReport {
         bytes,
@@ -204,5 +227,23 @@ mod tests {
         );
         assert!(check_quantum(1e-4, -800.0, 800.0).is_ok());
         assert!(check_quantum(1e-4, -900.0, 800.0).is_err());
+    }
+
+    #[test]
+    fn recorded_sources_keep_file_names_only() {
+        for (source, recorded) in [
+            ("/data/dem/N35E138.hgt", "N35E138.hgt"),
+            ("fuji.tif", "fuji.tif"),
+            ("a/x.tif + /b/y.tif", "x.tif + y.tif"),
+            (
+                "https://b.s3.amazonaws.com/dem/fuji.tif?X-Amz-Signature=abc",
+                "fuji.tif",
+            ),
+            ("HTTP://127.0.0.1:8080/cog/fuji.tif#frag", "fuji.tif"),
+            ("http://host/a.tif + /local/b.tif", "a.tif + b.tif"),
+            ("http://host/", "http://host/"),
+        ] {
+            assert_eq!(recorded_source(source), recorded, "{source}");
+        }
     }
 }

@@ -142,6 +142,19 @@ impl TileSpan {
         let nx = self.nx();
         (self.col(v % nx), self.row(v / nx))
     }
+
+    /// `f(col, row)` at every vertex's sample, in vertex order: `f` of [`TileSpan::vertex_pos`]
+    /// of `0, 1, ...`, without a division per vertex.
+    pub fn map_vertices<T>(&self, mut f: impl FnMut(u32, u32) -> T) -> Vec<T> {
+        let mut out = Vec::with_capacity(self.vertex_count());
+        for j in 0..self.ny() {
+            let r = self.row(j);
+            for i in 0..self.nx() {
+                out.push(f(self.col(i), r));
+            }
+        }
+        out
+    }
 }
 
 impl TileShape {

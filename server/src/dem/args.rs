@@ -1,7 +1,7 @@
 //! The DEM arguments of every command that reads a DEM (`build`, `serve`, `bench`): one set,
 //! so that a DEM that builds also serves.
 
-use super::{DEFAULT_MAX_SAMPLES, Dem, DemError, LoadOptions, PngOptions, load_all};
+use super::{Dem, DemError, LoadOptions, PngOptions, load_all};
 use crate::formats::terrain_rgb::Encoding;
 use crate::geo::mercator::TileId;
 
@@ -43,8 +43,9 @@ pub struct DemArgs {
     /// e.g. `--tile 12/3629/1617`), where its path does not say; overrides the path.
     #[arg(long, value_name = "Z/X/Y")]
     pub tile: Option<TileId>,
-    /// Refuse DEMs with more samples than this.
-    #[arg(long, default_value_t = DEFAULT_MAX_SAMPLES)]
+    /// Refuse DEMs with more samples than this [default: what a build fits in this machine's
+    /// memory, or the cgroup's limit, at 32 bytes a sample].
+    #[arg(long, default_value_t = super::default_max_samples(), hide_default_value = true)]
     pub max_samples: u64,
     /// Hide progress bars.
     #[arg(long)]

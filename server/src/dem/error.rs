@@ -14,6 +14,24 @@ pub enum DemError {
         /// What the OS said.
         source: std::io::Error,
     },
+    /// A remote file could not be read: the server's status, a broken or cut-short answer, or a
+    /// connection that failed. `url` leaves out the query string, which may hold credentials.
+    #[error("{url}: {detail}")]
+    Http {
+        /// The URL, without its query string.
+        url: String,
+        /// What went wrong, in words.
+        detail: String,
+    },
+    /// The server sent the whole file in answer to a range request: reading a large file that
+    /// way would download all of it for every few tiles, so Relief refuses.
+    #[error(
+        "the server at {url} does not support HTTP range requests (it answered 200 to a Range request); serve it from one that does (S3, GCS, nginx) or download it first"
+    )]
+    NoRanges {
+        /// The URL, without its query string.
+        url: String,
+    },
     /// The file is neither a TIFF nor a PNG by its first bytes, nor named as one of the formats
     /// Relief reads.
     #[error(
@@ -53,7 +71,10 @@ pub enum DemError {
     },
     /// More samples than the configured limit.
     #[error(
-        "{input}: {width}x{height} = {samples} samples exceeds the limit of {limit}; raise it with --max-samples"
+        "{input}: {width}x{height} = {samples} samples exceeds the limit of {limit}; a build \
+         holds it in memory, about {gib:.1} GiB here, so the default limit is what fits in this \
+         machine's memory; raise it with --max-samples",
+        gib = *samples as f64 * super::BUILD_BYTES_PER_SAMPLE as f64 / (1u64 << 30) as f64
     )]
     TooLarge {
         /// The input.

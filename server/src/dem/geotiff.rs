@@ -1,6 +1,8 @@
 //! GeoTIFF reader: int16, uint16, int32, float32 and float64 single-band grids (striped or tiled,
-//! any compression the `tiff` crate decodes), the GDAL_NODATA no-data value, and the ground
-//! spacing from the GeoTIFF tags.
+//! Cloud-Optimized or not; deflate, LZW, zstd or any other compression the `tiff` crate decodes;
+//! predictors 2 and 3), the GDAL_NODATA no-data value, and the ground spacing from the GeoTIFF
+//! tags. The samples are read chunk by chunk through [`super::cog::TiffWindows`], from a file
+//! or from a URL by HTTP range requests ([`read_url`]); the tags are read here ([`GeoTags`]).
 //!
 //! Spacing:
 //! - ModelPixelScaleTag (33550) gives the pixel size; ModelTransformationTag (34264) is read
@@ -14,12 +16,13 @@
 //!   ([`metres_per_degree`]). Across a 1-degree tile this varies by about 1% in x; Relief uses
 //!   one spacing per grid.
 
-use super::{DemError, LoadOptions, RawGrid, VoidMask, check_size};
+use super::cog::{Source, TiffWindows};
+use super::http_range::RangeReader;
+use super::{DemError, LoadOptions, RawGrid, VoidMask};
 use crate::geo::Georef;
 use crate::geo::ellipsoid::metres_per_degree;
 use std::io::{Read, Seek};
-use tiff::ColorType;
-use tiff::decoder::{Decoder, DecodingResult, Limits};
+use tiff::decoder::{Decoder, DecodingResult};
 use tiff::tags::Tag;
 
 /// GeoKey GTModelTypeGeoKey and its value for geographic (lat/lon) models.
@@ -35,58 +38,14 @@ const RASTER_PIXEL_IS_POINT: u16 = 2;
 /// The GeoKey value meaning "user-defined", which names no EPSG code.
 const USER_DEFINED: u16 = 32767;
 
-/// Reads a GeoTIFF from `reader`; `name` is used in messages.
-pub fn read<R: Read + Seek>(
-    name: &str,
-    reader: R,
-    opts: &LoadOptions,
-) -> Result<RawGrid, DemError> {
-    let corrupt = |e: tiff::TiffError| corrupt(name, e);
-    let mut dec = Decoder::new(reader).map_err(corrupt)?;
-    let (w, h) = dec.dimensions().map_err(corrupt)?;
-    check_size(name, w, h, opts)?;
-    match dec.colortype().map_err(corrupt)? {
-        ColorType::Gray(_) => {}
-        other => {
-            return Err(DemError::Unsupported {
-                path: name.into(),
-                detail: format!("{other:?} pixels; only single-band (grayscale) grids are read"),
-            });
-        }
-    }
-    // The size was checked against max_samples, so the decoder may hold that many 8-byte
-    // samples, decoded or still compressed; tag values keep the crate's 1 MiB limit.
-    let mut limits = Limits::default();
-    let bytes = usize::try_from(opts.max_samples.saturating_mul(8)).unwrap_or(usize::MAX);
-    limits.decoding_buffer_size = bytes.max(limits.decoding_buffer_size);
-    limits.intermediate_buffer_size = bytes.max(limits.intermediate_buffer_size);
-    dec = dec.with_limits(limits);
-    let nodata: Option<f64> = dec
-        .get_tag_ascii_string(Tag::GdalNodata)
-        .ok()
-        .and_then(|s| s.trim().trim_end_matches('\0').trim().parse().ok());
-    let geo = GeoTags {
-        keys: dec.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).ok(),
-        scale: dec.get_tag_f64_vec(Tag::ModelPixelScaleTag).ok(),
-        tie: dec.get_tag_f64_vec(Tag::ModelTiepointTag).ok(),
-        matrix: dec.get_tag_f64_vec(Tag::ModelTransformationTag).ok(),
-    };
-    let heights: Vec<f32> = match dec.read_image().map_err(corrupt)? {
-        DecodingResult::I16(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::U16(v) => v.into_iter().map(f32::from).collect(),
-        DecodingResult::I32(v) => v.into_iter().map(|x| x as f32).collect(),
-        DecodingResult::F32(v) => v,
-        DecodingResult::F64(v) => v.into_iter().map(|x| x as f32).collect(),
-        other => {
-            return Err(DemError::Unsupported {
-                path: name.into(),
-                detail: format!(
-                    "{} samples; Relief reads int16, uint16, int32, float32 and float64",
-                    kind(&other)
-                ),
-            });
-        }
-    };
+/// Reads a GeoTIFF from `reader`; `name` is used in messages. The grid is read chunk by chunk
+/// ([`TiffWindows`]), one window over the whole image.
+pub fn read<R: Source>(name: &str, reader: R, opts: &LoadOptions) -> Result<RawGrid, DemError> {
+    let mut tiff = TiffWindows::open(name, reader, opts)?;
+    let (w, h) = (tiff.width(), tiff.height());
+    let mut heights = vec![0.0f32; w as usize * h as usize];
+    tiff.read_window(0, 0, w, h, &mut heights)?;
+    let nodata = tiff.nodata();
     let mut voids = VoidMask::new(heights.len());
     let nan_is_void = nodata.is_some_and(f64::is_nan);
     if let Some(nd) = nodata.filter(|v| !v.is_nan()) {
@@ -103,17 +62,76 @@ pub fn read<R: Read + Seek>(
         height: h,
         heights,
         voids,
-        spacing: geo.spacing(w, h),
-        crs: geo.crs(),
-        georef: geo.georef(),
+        spacing: tiff.spacing(),
+        crs: tiff.crs(),
+        georef: tiff.georef(),
         nan_is_void,
+        io: tiff.io(),
     })
 }
 
-/// The decoder's error as a [`DemError`]: features the decoder lacks are
-/// [`DemError::Unsupported`], the rest [`DemError::Corrupt`], in plain words where they help.
-fn corrupt(name: &str, e: tiff::TiffError) -> DemError {
+/// Reads the GeoTIFF at the `http://` or `https://` URL `url` by HTTP range requests
+/// ([`RangeReader`]): a Cloud-Optimized GeoTIFF costs its directory and its tiles, nothing
+/// else is fetched twice.
+pub fn read_url(url: &str, opts: &LoadOptions) -> Result<RawGrid, DemError> {
+    let mut reader = RangeReader::open(url)?;
+    let mut head = [0u8; 4];
+    let n = reader.read(&mut head).map_err(|e| source_error(url, e))?;
+    reader
+        .seek(std::io::SeekFrom::Start(0))
+        .map_err(|e| source_error(url, e))?;
+    let tiff = [*b"II*\0", *b"MM\0*", *b"II+\0", *b"MM\0+"];
+    if !tiff.iter().any(|t| head[..n] == t[..]) {
+        return Err(DemError::Unsupported {
+            path: reader.shown_url().into(),
+            detail: format!(
+                "a URL is read as a GeoTIFF, and this file does not start like one (its first \
+                 bytes are {:?})",
+                String::from_utf8_lossy(&head[..n])
+            ),
+        });
+    }
+    read(url, reader, opts)
+}
+
+/// The error `e` of a source read as a [`DemError`]: the source's own where it gave one (a
+/// [`RangeReader`]'s HTTP errors travel inside `std::io::Error`), else an I/O error.
+fn source_error(name: &str, e: std::io::Error) -> DemError {
+    match take_dem_error(e) {
+        Ok(d) => d,
+        Err(source) => DemError::Io {
+            path: name.into(),
+            source,
+        },
+    }
+}
+
+/// The [`DemError`] inside `e`, if a source put one there; `e` otherwise.
+fn take_dem_error(e: std::io::Error) -> Result<DemError, std::io::Error> {
+    if !e.get_ref().is_some_and(|r| r.is::<DemError>()) {
+        return Err(e);
+    }
+    match e.into_inner() {
+        Some(inner) => inner
+            .downcast::<DemError>()
+            .map(|d| *d)
+            .map_err(std::io::Error::other),
+        None => Err(std::io::Error::other("unknown I/O error")),
+    }
+}
+
+/// The decoder's error as a [`DemError`]: a source's own error (HTTP) as it is, features the
+/// decoder lacks as [`DemError::Unsupported`], the rest [`DemError::Corrupt`], in plain words
+/// where they help.
+pub(super) fn corrupt(name: &str, e: tiff::TiffError) -> DemError {
     use tiff::TiffError;
+    let e = match e {
+        TiffError::IoError(io) => match take_dem_error(io) {
+            Ok(d) => return d,
+            Err(io) => TiffError::IoError(io),
+        },
+        e => e,
+    };
     let detail = match &e {
         TiffError::UnsupportedError(u) => {
             return DemError::Unsupported {
@@ -137,7 +155,7 @@ fn corrupt(name: &str, e: tiff::TiffError) -> DemError {
 }
 
 /// The GeoTIFF tags that place the grid on the ground.
-struct GeoTags {
+pub(super) struct GeoTags {
     /// GeoKeyDirectoryTag: model type and CRS codes.
     keys: Option<Vec<u16>>,
     /// ModelPixelScaleTag: pixel size (x, y, z) in model units.
@@ -150,6 +168,16 @@ struct GeoTags {
 }
 
 impl GeoTags {
+    /// The tags of the decoder's current image; absent or unreadable ones are `None`.
+    pub(super) fn read<R: Read + Seek>(dec: &mut Decoder<R>) -> GeoTags {
+        GeoTags {
+            keys: dec.get_tag_u16_vec(Tag::GeoKeyDirectoryTag).ok(),
+            scale: dec.get_tag_f64_vec(Tag::ModelPixelScaleTag).ok(),
+            tie: dec.get_tag_f64_vec(Tag::ModelTiepointTag).ok(),
+            matrix: dec.get_tag_f64_vec(Tag::ModelTransformationTag).ok(),
+        }
+    }
+
     /// The value of GeoKey `id` stored inline in the key directory, if present.
     fn key(&self, id: u16) -> Option<u16> {
         let keys = self.keys.as_deref()?;
@@ -161,7 +189,7 @@ impl GeoTags {
     }
 
     /// `EPSG:n` from the projected or geographic CRS key, if it names one.
-    fn crs(&self) -> Option<String> {
+    pub(super) fn crs(&self) -> Option<String> {
         self.key(PROJECTED_CS_TYPE)
             .or_else(|| self.key(GEOGRAPHIC_TYPE))
             .filter(|&c| c != 0 && c != USER_DEFINED)
@@ -170,7 +198,7 @@ impl GeoTags {
 
     /// Where the samples lie, when the file names an EPSG CRS and places the grid north-up
     /// without rotation; `None` otherwise (the terrain then serves no standard formats).
-    fn georef(&self) -> Option<Georef> {
+    pub(super) fn georef(&self) -> Option<Georef> {
         let epsg = self.crs()?.strip_prefix("EPSG:")?.parse().ok()?;
         if let Some(m) = self.matrix.as_deref().filter(|_| self.scale.is_none()) {
             // Rotated, sheared or south-up grids are not regular in their CRS's axes.
@@ -219,7 +247,7 @@ impl GeoTags {
     }
 
     /// Ground spacing in metres, or why there is none.
-    fn spacing(&self, w: u32, h: u32) -> Result<(f64, f64), String> {
+    pub(super) fn spacing(&self, w: u32, h: u32) -> Result<(f64, f64), String> {
         let Some(Affine {
             size: (sx, sy),
             origin,
@@ -262,7 +290,7 @@ struct Affine {
 }
 
 /// A sample type's name for messages.
-fn kind(r: &DecodingResult) -> &'static str {
+pub(super) fn kind(r: &DecodingResult) -> &'static str {
     match r {
         DecodingResult::U8(_) => "uint8",
         DecodingResult::U16(_) => "uint16",

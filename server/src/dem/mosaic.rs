@@ -21,8 +21,12 @@
 //!
 //! The pieces are all read before they are joined, so joining needs about twice the memory of
 //! the result.
+//!
+//! A folder given as an input stands for the `.tif` and `.tiff` files in it, in name order
+//! ([`folder_tiffs`]): a folder of Cloud-Optimized GeoTIFFs is one mosaic, as GDAL's VRTs are
+//! used.
 
-use super::{DemError, LoadOptions, RawGrid, VoidMask, check_size, read_file};
+use super::{DemError, IoStats, LoadOptions, RawGrid, VoidMask, check_size, read_file};
 use crate::geo::Georef;
 
 /// Relative tolerance on the pieces' grid steps.
@@ -118,6 +122,10 @@ pub fn join(specs: &[&str], opts: &LoadOptions) -> Result<(String, RawGrid), Dem
             );
         }
     }
+    let mut io = IoStats::default();
+    for (_, _, raw) in &pieces {
+        io += raw.io;
+    }
     let mut voids = VoidMask::new(n);
     for i in 0..n {
         if !measured.get(i) {
@@ -143,8 +151,39 @@ pub fn join(specs: &[&str], opts: &LoadOptions) -> Result<(String, RawGrid), Dem
         crs: Some(georef.crs()),
         georef: Some(georef),
         nan_is_void: false,
+        io,
     };
     Ok((source, raw))
+}
+
+/// The `.tif` and `.tiff` files directly in the folder `dir`, sorted by name: the pieces of the
+/// mosaic a folder stands for. A folder without any is an error, not an empty terrain.
+pub fn folder_tiffs(dir: &str) -> Result<Vec<String>, DemError> {
+    let io = |source| DemError::Io {
+        path: dir.into(),
+        source,
+    };
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir).map_err(io)? {
+        let path = entry.map_err(io)?.path();
+        let tiff = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("tif") || e.eq_ignore_ascii_case("tiff"));
+        if tiff && path.is_file() {
+            files.push(path.display().to_string());
+        }
+    }
+    if files.is_empty() {
+        return Err(DemError::BadOptions {
+            input: dir.into(),
+            detail: "the folder holds no .tif or .tiff files; a folder input is the mosaic of \
+                     the GeoTIFFs in it"
+                .into(),
+        });
+    }
+    files.sort();
+    Ok(files)
 }
 
 /// The offset in whole samples (columns east, rows south) of the grid `g` of `spec` from the
@@ -263,6 +302,43 @@ mod tests {
         let m2 = load_all(&[&east, &west], &opts).unwrap();
         assert_same(&m2, &w, 1e-9);
         assert_eq!(m2.georef.unwrap().first, [138.0, 36.0]);
+    }
+
+    #[test]
+    fn a_folder_is_the_mosaic_of_its_geotiffs_in_name_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let step = 1.0 / 1200.0;
+        let keys = [1u16, 1, 0, 2, 1024, 0, 1, 2, 2048, 0, 1, 4326];
+        // Columns c0.. of the whole, w wide; the pieces share column 30.
+        let piece = |c0: u32, w: u32| {
+            let west = 138.0 - step / 2.0 + c0 as f64 * step;
+            let tags = GeoTags {
+                scale: Some([step, step, 0.0]),
+                tie: Some([0.0, 0.0, 0.0, west, 36.0 + step / 2.0, 0.0]),
+                keys: Some(&keys),
+                ..GeoTags::default()
+            };
+            let v: Vec<i16> = (0..w * 40).map(|i| whole(c0 + i % w, i / w)).collect();
+            tiff_bytes::<colortype::GrayI16>(w, 40, &v, &tags)
+        };
+        let folder = dir.path().join("cogs");
+        std::fs::create_dir(&folder).unwrap();
+        std::fs::write(folder.join("b.tif"), piece(30, 30)).unwrap();
+        std::fs::write(folder.join("a.TIF"), piece(0, 31)).unwrap();
+        std::fs::write(folder.join("notes.txt"), "not a DEM").unwrap();
+        let opts = LoadOptions::default();
+        let whole_tif = write_tmp(&dir, "whole.tif", &geotiff(60, 40, whole));
+        let reference = load(&whole_tif, &opts).unwrap();
+        let f = folder.display().to_string();
+        for d in [load(&f, &opts).unwrap(), load_all(&[&f], &opts).unwrap()] {
+            assert_eq!(d.source, format!("{f}/a.TIF + {f}/b.tif"));
+            assert_same(&d, &reference, 1e-9);
+        }
+        let empty = dir.path().join("empty");
+        std::fs::create_dir(&empty).unwrap();
+        let e = load_all(&[empty.to_str().unwrap()], &opts).unwrap_err();
+        assert!(matches!(e, DemError::BadOptions { .. }), "{e}");
+        assert!(e.to_string().contains("no .tif or .tiff files"), "{e}");
     }
 
     #[test]

@@ -75,6 +75,7 @@ pub fn read<R: BufRead + Seek>(
         crs: None,
         georef: None,
         nan_is_void: false,
+        io: Default::default(),
     })
 }
 

@@ -86,6 +86,7 @@ pub fn read<R: BufRead + Seek>(
         crs: Some(g.crs()),
         georef: Some(g),
         nan_is_void: true,
+        io: Default::default(),
     })
 }
 

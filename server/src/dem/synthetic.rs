@@ -80,6 +80,7 @@ pub fn load(spec: &str, rest: &str, opts: &LoadOptions) -> Result<Dem, DemError>
         crs: None,
         georef: None,
         nan_is_void: false,
+        io: Default::default(),
     };
     super::finish(spec, raw, opts)
 }
@@ -246,18 +247,27 @@ pub fn generate(size: u32, seed: u32, progress: bool) -> Vec<f32> {
     if n == 0 {
         return out;
     }
+    use rayon::prelude::*;
     let bar = crate::bench::progress_bar(progress && n * n > 1 << 22, n as u64, "synthetic");
     let t = Terrain::new(size, seed);
-    let mut samplers: Vec<RowSampler> = t.fields.iter().map(|&f| RowSampler::new(f, n)).collect();
-    let mut rows = vec![0.0f32; t.fields.len() * n];
-    let mut scratch = Scratch::default();
-    for (y, line) in out.chunks_mut(n).enumerate() {
-        for (s, row) in samplers.iter_mut().zip(rows.chunks_mut(n)) {
-            s.row(y, row);
-        }
-        combine_rows(&t, &rows, line, &mut scratch);
-        bar.inc(1);
-    }
+    // Bands of rows on every core: a row depends on its index alone (the samplers only keep
+    // what the last row computed), so the heights are the same whatever the number of threads.
+    const BAND: usize = 64;
+    out.par_chunks_mut(n * BAND)
+        .enumerate()
+        .for_each(|(band, lines)| {
+            let mut samplers: Vec<RowSampler> =
+                t.fields.iter().map(|&f| RowSampler::new(f, n)).collect();
+            let mut rows = vec![0.0f32; t.fields.len() * n];
+            let mut scratch = Scratch::default();
+            for (i, line) in lines.chunks_mut(n).enumerate() {
+                for (s, row) in samplers.iter_mut().zip(rows.chunks_mut(n)) {
+                    s.row(band * BAND + i, row);
+                }
+                combine_rows(&t, &rows, line, &mut scratch);
+            }
+            bar.inc((lines.len() / n) as u64);
+        });
     bar.finish_and_clear();
     out
 }

@@ -139,6 +139,7 @@ pub fn read<R: Read>(
         crs: Some(g.crs()),
         georef: Some(g),
         nan_is_void: false,
+        io: Default::default(),
     })
 }
 

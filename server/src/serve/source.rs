@@ -55,8 +55,20 @@ pub enum SourceError {
 pub fn cache_key<S: AsRef<str>>(specs: &[S], opts: &LoadOptions) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
     specs.len().hash(&mut h);
-    for spec in specs {
-        let spec = spec.as_ref();
+    // A folder stands for the GeoTIFFs in it (as `build` reads it): each file counts, so that
+    // a file added, removed or changed there builds a new store.
+    let specs: Vec<String> = specs
+        .iter()
+        .flat_map(|s| {
+            let s = s.as_ref();
+            match Path::new(s).is_dir() {
+                true => crate::dem::mosaic::folder_tiffs(s).unwrap_or_else(|_| vec![s.into()]),
+                false => vec![s.to_string()],
+            }
+        })
+        .collect();
+    for spec in &specs {
+        let spec = spec.as_str();
         match file_digest(spec) {
             // A file by its name and contents, not its folder or its time: replicas that
             // fetched the same DEM into different places, at different times, build the

@@ -17,7 +17,8 @@
 //!   distance as error makes the mesh's outline refine like any other detail, so it never visibly
 //!   recedes from or reaches past the grid's edge.
 //!
-//! The pass is single-threaded and touches each node once.
+//! The pass touches each node once, a level at a time from the leaves up, each level's rows on
+//! every core.
 
 use relief_proto::haar::{self, Presence, error_code, error_value};
 use relief_proto::terrain::TerrainGeometry;
@@ -57,9 +58,16 @@ pub fn build_arrays(
     let leaf0 = inner;
     // Round half away from zero, without a libm call per sample.
     let inv = 1.0 / quantum;
-    for (dst, &h) in t.z[leaf0..].iter_mut().zip(heights) {
-        let v = h * inv;
-        *dst = (v + 0.5f32.copysign(v)) as i32;
+    {
+        use rayon::prelude::*;
+        t.z[leaf0..]
+            .par_iter_mut()
+            .zip(heights.par_iter())
+            .with_min_len(1 << 16)
+            .for_each(|(dst, &h)| {
+                let v = h * inv;
+                *dst = (v + 0.5f32.copysign(v)) as i32;
+            });
     }
     let total = n as f64;
     let mut done = (n - inner) as f64;
@@ -73,56 +81,105 @@ pub fn build_arrays(
     t
 }
 
+/// Level `level`'s nodes from their children's, one row of nodes per task on every core (rayon's
+/// pool). A row reads only the level below and writes only its own nodes, so the arrays are the
+/// same whatever the number of threads.
 fn build_level(geom: &TerrainGeometry, level: u8, t: &mut TreeArrays) {
+    use rayon::prelude::*;
+    let shape = &geom.shape;
+    let (w, h) = shape.level_dims(level);
+    let base = shape.level_offset(level) as usize;
+    let cbase = shape.level_offset(level + 1) as usize;
+    let n = w as usize * h as usize;
+    // The level is the slice before the next level's; the arrays of inner nodes end where the
+    // leaves begin.
+    let (z_up, z_below) = t.z.split_at_mut(cbase);
+    let inner = cbase.min(t.err.len());
+    let (zmin_up, zmin_below) = t.zmin.split_at_mut(inner);
+    let (zmax_up, zmax_below) = t.zmax.split_at_mut(inner);
+    let (err_up, err_below) = t.err.split_at_mut(inner);
+    let below = Below {
+        z: z_below,
+        zmin: zmin_below,
+        zmax: zmax_below,
+        err: err_below,
+    };
+    let w = w as usize;
+    z_up[base..base + n]
+        .par_chunks_mut(w)
+        .zip(zmin_up[base..base + n].par_chunks_mut(w))
+        .zip(zmax_up[base..base + n].par_chunks_mut(w))
+        .zip(err_up[base..base + n].par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (((z, zmin), zmax), err))| {
+            build_row(geom, level, y as u32, &below, [z, zmin, zmax], err);
+        });
+}
+
+/// The arrays of the level below the one being built, indexed from that level's first node.
+struct Below<'a> {
+    z: &'a [i32],
+    zmin: &'a [i32],
+    zmax: &'a [i32],
+    err: &'a [u8],
+}
+
+/// Row `y` of level `level`: its nodes' heights, bounds and error codes.
+fn build_row(
+    geom: &TerrainGeometry,
+    level: u8,
+    y: u32,
+    below: &Below<'_>,
+    [zs, zmins, zmaxs]: [&mut [i32]; 3],
+    errs: &mut [u8],
+) {
     let shape = &geom.shape;
     let quantum = geom.z_quantum;
     let (w, h) = shape.level_dims(level);
     let (cw, ch) = shape.level_dims(level + 1);
-    let base = shape.level_offset(level) as usize;
-    let cbase = shape.level_offset(level + 1) as usize;
     let child_is_leaf = level + 1 == shape.depth();
-    for y in 0..h {
-        let south = 2 * y + 1 < ch;
-        for x in 0..w {
-            let east = 2 * x + 1 < cw;
-            let p = Presence { east, south };
-            let c0 = cbase + (2 * y) as usize * cw as usize + (2 * x) as usize;
-            let c2 = c0 + cw as usize;
-            let idx = [c0, c0 + east as usize, if south { c2 } else { c0 }, {
-                if south {
-                    c2 + east as usize
-                } else {
-                    c0 + east as usize
-                }
-            }];
-            let quad = idx.map(|i| t.z[i]);
-            let (z, _) = haar::forward(quad, p);
-            let (lo, hi, nested) = if child_is_leaf {
-                let lo = *quad.iter().min().unwrap_or(&z);
-                let hi = *quad.iter().max().unwrap_or(&z);
-                (lo, hi, 0.0f32)
+    let south = 2 * y + 1 < ch;
+    for x in 0..w {
+        let east = 2 * x + 1 < cw;
+        let p = Presence { east, south };
+        let c0 = (2 * y) as usize * cw as usize + (2 * x) as usize;
+        let c2 = c0 + cw as usize;
+        let idx = [c0, c0 + east as usize, if south { c2 } else { c0 }, {
+            if south {
+                c2 + east as usize
             } else {
-                let lo = idx.iter().map(|&i| t.zmin[i]).min().unwrap_or(z);
-                let hi = idx.iter().map(|&i| t.zmax[i]).max().unwrap_or(z);
-                let nested = idx
-                    .iter()
-                    .map(|&i| error_value(t.err[i]) + (t.z[i] - z).unsigned_abs() as f32 * quantum)
-                    .fold(0.0f32, f32::max);
-                (lo, hi, nested)
-            };
-            let me = base + (y * w + x) as usize;
-            let deviation = (hi as i64 - z as i64).max(z as i64 - lo as i64) as f32 * quantum;
-            t.z[me] = z;
-            t.zmin[me] = lo;
-            t.zmax[me] = hi;
-            let on_border = x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-            let border = if on_border {
-                border_offset(geom, NodeId { level, x, y })
-            } else {
-                0.0
-            };
-            t.err[me] = error_code(deviation.max(border).max(nested));
-        }
+                c0 + east as usize
+            }
+        }];
+        let quad = idx.map(|i| below.z[i]);
+        let (z, _) = haar::forward(quad, p);
+        let (lo, hi, nested) = if child_is_leaf {
+            let lo = *quad.iter().min().unwrap_or(&z);
+            let hi = *quad.iter().max().unwrap_or(&z);
+            (lo, hi, 0.0f32)
+        } else {
+            let lo = idx.iter().map(|&i| below.zmin[i]).min().unwrap_or(z);
+            let hi = idx.iter().map(|&i| below.zmax[i]).max().unwrap_or(z);
+            let nested = idx
+                .iter()
+                .map(|&i| {
+                    error_value(below.err[i]) + (below.z[i] - z).unsigned_abs() as f32 * quantum
+                })
+                .fold(0.0f32, f32::max);
+            (lo, hi, nested)
+        };
+        let me = x as usize;
+        let deviation = (hi as i64 - z as i64).max(z as i64 - lo as i64) as f32 * quantum;
+        zs[me] = z;
+        zmins[me] = lo;
+        zmaxs[me] = hi;
+        let on_border = x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+        let border = if on_border {
+            border_offset(geom, NodeId { level, x, y })
+        } else {
+            0.0
+        };
+        errs[me] = error_code(deviation.max(border).max(nested));
     }
 }
 

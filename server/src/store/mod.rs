@@ -200,10 +200,14 @@ pub fn write_store(
         progress(0.5 + f / 2.0)
     });
     let tiles_s = t1.elapsed().as_secs_f64();
-    let mut voids = vec![0u8; input.voids.len().div_ceil(8)];
-    for (i, _) in input.voids.iter().enumerate().filter(|(_, v)| **v) {
-        voids[i / 8] |= 1 << (i % 8);
-    }
+    let voids: Vec<u8> = {
+        use rayon::prelude::*;
+        input
+            .voids
+            .par_chunks(8)
+            .map(|bits| (bits.iter().enumerate()).fold(0u8, |b, (i, &v)| b | u8::from(v) << i))
+            .collect()
+    };
     let meta = serde_json::to_vec(&input.meta).map_err(|e| StoreError::Corrupt(e.to_string()))?;
     let header = Header {
         width: input.width,

@@ -30,7 +30,7 @@ use crate::lod::tile::mesh::pyramid::{PyramidMesh, Tolerances, irregular_error, 
 use bytemuck::{Pod, Zeroable};
 use relief_proto::tile::body::curtain::encode_curtains;
 use relief_proto::tile::body::{
-    MeshKind, Patches, cell_height, encode_patches, find_patches, skirt_triangle_count,
+    MeshKind, Patches, encode_patches, find_patches, skirt_triangle_count,
 };
 use relief_proto::tile::{EDGES, Edge};
 use relief_proto::tile::{TileId, TileShape, TileSpan};
@@ -73,15 +73,16 @@ pub fn build_pyramid(
     mut progress: impl FnMut(f64),
 ) -> TilePyramid {
     let (w, h) = (shape.width(), shape.height());
+    use rayon::prelude::*;
     let inv = 1.0 / quantum;
     let zq: Vec<i32> = heights
-        .iter()
+        .par_iter()
         .map(|&h| {
             let v = h * inv;
             (v + 0.5f32.copysign(v)) as i32
         })
         .collect();
-    let zf: Vec<f32> = zq.iter().map(|&v| v as f32 * quantum).collect();
+    let zf: Vec<f32> = zq.par_iter().map(|&v| v as f32 * quantum).collect();
     let (Some(orig), Some(quantised)) = (
         HeightGrid::new(w as usize, h as usize, heights),
         HeightGrid::new(w as usize, h as usize, &zf),
@@ -99,12 +100,7 @@ pub fn build_pyramid(
         n,
         |i| {
             let span = shape.span(tile(i));
-            let z: Vec<f32> = (0..span.vertex_count() as u32)
-                .map(|v| {
-                    let (c, r) = span.vertex_pos(v);
-                    quantised.at(c, r)
-                })
-                .collect();
+            let z = span.map_vertices(|c, r| quantised.at(c, r));
             let (err, lo, hi) = grid_error_bounds(&span, &z, &orig);
             (err, ((lo * inv).floor() as i32, (hi * inv).ceil() as i32))
         },
@@ -226,35 +222,100 @@ pub fn build_pyramid(
 
 /// The grid mesh over `span` (vertex heights `z`) against the samples `orig` it covers: the
 /// largest vertical distance, and the lowest and highest sample. The same numbers as
-/// [`relief_proto::tile::body::grid_height`] at every sample, computed a cell at a time: each sample falls in the cell
-/// `grid_height` puts it in (the stride divides exactly in `f32`), with the same `u` and `v`,
-/// so the store's bytes do not change; the cell's lookups are made once, not per sample.
+/// [`relief_proto::tile::body::grid_height`] at every sample, computed a row at a time: each
+/// sample falls in the cell `grid_height` puts it in (the stride divides exactly in `f32`), with
+/// the same `u` and `v`, and each height is the same `f32` expression (the greatest distance
+/// and the extremes do not depend on the order they are taken in), so the store's bytes do not
+/// change. The terms of a cell's two triangles that do not depend on `u` are made once a row;
+/// a cell eight or more samples wide is done eight samples at a time.
 fn grid_error_bounds(span: &TileSpan, z: &[f32], orig: &HeightGrid<'_>) -> (f32, f32, f32) {
+    use wide::f32x8;
     let (nx, ny) = (span.nx(), span.ny());
     let w = nx as usize;
+    let col0 = span.cols.0;
+    // Each cell's first and last column, as offsets from the span's first: a sample on a cell's
+    // far side belongs to the next cell, except on the last.
+    let cells: Vec<(usize, usize)> = (0..nx - 1)
+        .map(|i| {
+            let (c0, c1) = (span.col(i), span.col(i + 1));
+            let c_last = if i == nx - 2 { c1 } else { c1 - 1 };
+            ((c0 - col0) as usize, (c_last - col0) as usize)
+        })
+        .collect();
+    // `u` at each column of a cell, by the cell's width (all cells but the last share one).
+    let u_of = |i: u32| -> Vec<f32> {
+        let (c0, c1) = (span.col(i), span.col(i + 1));
+        let (c0f, c1f) = (c0 as f32, c1 as f32);
+        let (first, last) = cells[i as usize];
+        (0..=last - first)
+            .map(|d| (((c0 + d as u32) as f32 - c0f) / (c1f - c0f)).clamp(0.0, 1.0))
+            .collect()
+    };
+    let u_first = u_of(0);
+    let u_last = u_of(nx - 2);
     let (mut err, mut lo, mut hi) = (0f32, f32::MAX, f32::MIN);
+    let (mut err8, mut lo8, mut hi8) =
+        (f32x8::ZERO, f32x8::splat(f32::MAX), f32x8::splat(f32::MIN));
     for j in 0..ny - 1 {
         let (r0, r1) = (span.row(j), span.row(j + 1));
-        // A sample on a cell's far side belongs to the next cell, except on the last.
         let r_last = if j == ny - 2 { r1 } else { r1 - 1 };
         let (r0f, r1f) = (r0 as f32, r1 as f32);
         for r in r0..=r_last {
             let v = ((r as f32 - r0f) / (r1f - r0f)).clamp(0.0, 1.0);
-            for i in 0..nx - 1 {
-                let (c0, c1) = (span.col(i), span.col(i + 1));
-                let c_last = if i == nx - 2 { c1 } else { c1 - 1 };
-                let (c0f, c1f) = (c0 as f32, c1 as f32);
-                let at = (j * nx + i) as usize;
-                let corners = [z[at], z[at + 1], z[at + w], z[at + w + 1]];
-                for c in c0..=c_last {
-                    let u = ((c as f32 - c0f) / (c1f - c0f)).clamp(0.0, 1.0);
-                    let h = orig.at(c, r);
+            let start = r as usize * orig.width + col0 as usize;
+            let row = &orig.z[start..];
+            for (i, &(first, last)) in cells.iter().enumerate() {
+                let at = j as usize * w + i;
+                let [z00, z10, z01, z11] = [z[at], z[at + 1], z[at + w], z[at + w + 1]];
+                // `cell_height`'s two triangles: under the diagonal (`u <= v`)
+                // `(z00 + v * (z01 - z00)) + u * (z11 - z01)`, above it
+                // `(z00 + u * (z10 - z00)) + v * (z11 - z10)`.
+                let (a, b) = (z00 + v * (z01 - z00), z11 - z01);
+                let (d, e) = (z10 - z00, v * (z11 - z10));
+                let us: &[f32] = if i + 1 == cells.len() {
+                    &u_last
+                } else {
+                    &u_first
+                };
+                let hs = &row[first..=last];
+                let mut k = 0;
+                if hs.len() >= 8 {
+                    let (va, vb, vz, vd, ve, vv) = (
+                        f32x8::splat(a),
+                        f32x8::splat(b),
+                        f32x8::splat(z00),
+                        f32x8::splat(d),
+                        f32x8::splat(e),
+                        f32x8::splat(v),
+                    );
+                    while k + 8 <= hs.len() {
+                        let h = f32x8::new(hs[k..k + 8].try_into().unwrap_or([0.0; 8]));
+                        let u = f32x8::new(us[k..k + 8].try_into().unwrap_or([0.0; 8]));
+                        let g = u.simd_le(vv).select(va + u * vb, vz + u * vd + ve);
+                        lo8 = lo8.fast_min(h);
+                        hi8 = hi8.fast_max(h);
+                        err8 = err8.fast_max((g - h).abs());
+                        k += 8;
+                    }
+                }
+                for (&h, &u) in hs[k..].iter().zip(&us[k..]) {
+                    let g = if u <= v { a + u * b } else { z00 + u * d + e };
                     lo = lo.min(h);
                     hi = hi.max(h);
-                    err = err.max((cell_height(corners, u, v) - h).abs());
+                    err = err.max((g - h).abs());
                 }
             }
         }
+    }
+    for ((e, l), h) in err8
+        .to_array()
+        .into_iter()
+        .zip(lo8.to_array())
+        .zip(hi8.to_array())
+    {
+        err = err.max(e);
+        lo = lo.min(l);
+        hi = hi.max(h);
     }
     (err, lo, hi)
 }

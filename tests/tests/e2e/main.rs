@@ -6,6 +6,7 @@
 mod bench_lod;
 mod browser_formats;
 mod browser_page;
+mod cog_input;
 mod deploy;
 mod hostile_frames;
 mod hostile_http;

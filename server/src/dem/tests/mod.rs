@@ -168,10 +168,20 @@ fn too_small_and_too_large_grids_are_refused() {
     let e = load(&p, &small).unwrap_err();
     assert_eq!(
         e.to_string(),
-        format!("{p}: 8x8 = 64 samples exceeds the limit of 63; raise it with --max-samples")
+        format!(
+            "{p}: 8x8 = 64 samples exceeds the limit of 63; a build holds it in memory, about \
+             0.0 GiB here, so the default limit is what fits in this machine's memory; raise it \
+             with --max-samples"
+        )
     );
-    assert!(check_size("x", 16385, 16385, &opts).is_ok());
-    assert!(check_size("x", 16385, 16386, &opts).is_err());
+    // The default limit is what a build fits in the memory this process may use.
+    let limit = default_max_samples();
+    let side = limit.isqrt() as u32;
+    assert!(check_size("x", side, side, &opts).is_ok());
+    assert!(check_size("x", side + 1, side + 1, &opts).is_err());
+    if let Some(m) = crate::sysmem::usable_memory() {
+        assert_eq!(limit, m / crate::dem::BUILD_BYTES_PER_SAMPLE);
+    }
 }
 
 #[test]

@@ -260,22 +260,10 @@ impl std::fmt::Debug for Secret {
 }
 
 /// The default memory budget: a quarter of the memory this process may use (the cgroup's
-/// limit where there is one, else the machine's), or 1 GiB where neither can be read.
+/// limit where there is one, else the machine's; [`crate::sysmem::usable_memory`]), or 1 GiB
+/// where neither can be read.
 pub fn default_memory_budget() -> u64 {
-    let cgroup = std::fs::read_to_string("/sys/fs/cgroup/memory.max")
-        .ok()
-        .and_then(|s| s.trim().parse::<u64>().ok());
-    let machine = std::fs::read_to_string("/proc/meminfo").ok().and_then(|s| {
-        s.lines()
-            .find_map(|l| l.strip_prefix("MemTotal:"))
-            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
-            .map(|kb| kb * 1024)
-    });
-    match (cgroup, machine) {
-        (Some(c), Some(m)) => c.min(m) / 4,
-        (Some(x), None) | (None, Some(x)) => x / 4,
-        (None, None) => 1 << 30,
-    }
+    crate::sysmem::usable_memory().map_or(1 << 30, |m| m / 4)
 }
 
 impl Default for Limits {

@@ -108,12 +108,7 @@ pub fn mesh_tile(
     let w = shape.width();
     let at = |c: u32, r: u32| zq[(r * w + c) as usize];
     let grid = || {
-        let z: Vec<i32> = (0..span.vertex_count() as u32)
-            .map(|v| {
-                let (c, r) = span.vertex_pos(v);
-                at(c, r)
-            })
-            .collect();
+        let z = span.map_vertices(at);
         PyramidMesh {
             blob: encode_mesh(&span, &z),
             z,
@@ -143,12 +138,7 @@ pub fn mesh_tile(
         MeshKind::Rqt => {
             let (nx, ny) = (span.nx(), span.ny());
             let s = span.stride;
-            let lattice: Vec<f32> = (0..span.vertex_count() as u32)
-                .map(|v| {
-                    let (c, r) = span.vertex_pos(v);
-                    quantised.at(c, r)
-                })
-                .collect();
+            let lattice = span.map_vertices(|c, r| quantised.at(c, r));
             let errors = HeightGrid::new(nx as usize, ny as usize, &lattice)
                 .filter(|_| rqt_side(&span).is_some())
                 .and_then(|g| RqtErrors::new(&g).ok());
