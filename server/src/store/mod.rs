@@ -188,6 +188,10 @@ pub fn write_store(
         .map_err(|e| StoreError::Corrupt(e.to_string()))?;
     let t0 = std::time::Instant::now();
     let arrays = build::build_arrays(&geom, input.heights, |f| progress(f / 2.0));
+    // The node records now, and the tree's arrays dropped before the tile pyramid is built:
+    // the two never take memory at once.
+    let records = node_records(&geom.shape, &arrays)?;
+    drop(arrays);
     let build_s = t0.elapsed().as_secs_f64();
     let t1 = std::time::Instant::now();
     let kind = mesh_kind(&input.meta.tile_mesh).ok_or_else(|| {
@@ -229,7 +233,6 @@ pub fn write_store(
         path: tmp.0.display().to_string(),
         source,
     };
-    let records = node_records(&geom.shape, &arrays)?;
     let mut file = std::io::BufWriter::new(File::create(&tmp.0).map_err(tmp_io)?);
     let size = format::write_sections(
         &mut file,
