@@ -69,6 +69,10 @@ enum Command {
         /// 003's greedy Delaunay TIN with shared borders, or skirts). See docs/streams.md.
         #[arg(long, value_enum, default_value = "grid")]
         tile_mesh: TileMeshArg,
+        /// Threads to read and build on [default: one per core]. The store is the same bytes
+        /// whatever the number.
+        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+        threads: Option<u32>,
         #[command(flatten)]
         dem: DemArgs,
     },
@@ -464,18 +468,24 @@ fn run() -> anyhow::Result<()> {
             z_quantum,
             tile_size,
             tile_mesh,
+            threads,
             dem,
         } => {
             relief_proto::tile::TileShape::new(2, 2, tile_size)?;
-            let d = dem.load(&inputs).context("cannot load the DEM")?;
+            let pool =
+                preprocess::thread_pool(threads.map(|t| t as usize)).map_err(anyhow::Error::msg)?;
+            let d = pool
+                .install(|| dem.load(&inputs))
+                .context("cannot load the DEM")?;
             let opts = preprocess::BuildOptions {
                 quantum: z_quantum,
                 tile_size,
                 tile_mesh: tile_mesh.into(),
                 progress: !dem.quiet,
             };
-            let rep =
-                preprocess::build_store(&d, &output, &opts).context("cannot build the store")?;
+            let rep = pool
+                .install(|| preprocess::build_store(&d, &output, &opts))
+                .context("cannot build the store")?;
             let samples = d.width as f64 * d.height as f64;
             tracing::info!(
                 "wrote {} ({} bytes): {}x{} samples, tree built in {:.2} s ({:.1} M samples/s), tiles in {:.2} s",

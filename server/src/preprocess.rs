@@ -82,6 +82,20 @@ impl Default for BuildOptions {
     }
 }
 
+/// The pool a build runs on (every parallel step of reading and building uses rayon's pool):
+/// `threads` threads, or one per core.
+pub fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, String> {
+    let threads =
+        threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    if threads == 0 {
+        return Err("--threads must be at least 1".into());
+    }
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| format!("cannot start {threads} build threads: {e}"))
+}
+
 /// Builds the store of `dem` (the vertex quadtree and the tile pyramid) at `path`.
 pub fn build_store(dem: &Dem, path: &Path, opts: &BuildOptions) -> Result<BuildReport, StoreError> {
     build(dem, path, opts, None)
@@ -180,12 +194,8 @@ fn build(
     let samples = u64::from(dem.width) * u64::from(dem.height);
     let bar = crate::bench::build_progress_bar(progress, samples);
     let (bytes, tree_s, tiles_s) = write_store(path, &input, |f| {
-        // write_store gives the tree the first half, the tile pyramid the second.
-        bar.set_message(if f < 0.5 {
-            "vertex tree"
-        } else {
-            "tile pyramid"
-        });
+        let tree = f < crate::store::TREE_SHARE;
+        bar.set_message(if tree { "vertex tree" } else { "tile pyramid" });
         bar.set_position((f * samples as f64) as u64)
     })?;
     bar.finish_and_clear();

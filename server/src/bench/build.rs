@@ -101,14 +101,8 @@ fn usage() -> (f64, u64) {
 /// Builds once and measures it.
 pub fn run(opts: &BuildBenchOptions) -> anyhow::Result<BuildBenchReport> {
     use anyhow::Context;
-    let threads = opts
-        .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
-    anyhow::ensure!(threads >= 1, "--threads must be at least 1");
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start the build threads")?;
+    let pool = crate::preprocess::thread_pool(opts.threads).map_err(anyhow::Error::msg)?;
+    let threads = pool.current_num_threads();
     let dir = tempfile::tempdir().context("cannot make a temporary folder for the store")?;
     let path = opts
         .output
