@@ -153,27 +153,80 @@ impl Header {
     }
 }
 
+/// Writes a store's sections one after another to `out`, each as soon as it is made: a header
+/// placeholder first, the real header (section offsets and the body's checksum) last.
+pub struct SectionWriter<W> {
+    out: W,
+    header: Header,
+    /// The next section's index.
+    next: usize,
+    /// Bytes written so far.
+    pos: u64,
+    crc: crc32fast::Hasher,
+}
+
+impl<W: Write + std::io::Seek> SectionWriter<W> {
+    /// Starts a store of `header`'s fields (its sections and checksum are filled in here).
+    pub fn new(mut out: W, header: Header) -> std::io::Result<SectionWriter<W>> {
+        out.write_all(&[0u8; HEADER_LEN])?;
+        Ok(SectionWriter {
+            out,
+            header,
+            next: 0,
+            pos: HEADER_LEN as u64,
+            crc: crc32fast::Hasher::new(),
+        })
+    }
+
+    /// Appends the next section, padded to 8 bytes.
+    pub fn section(&mut self, s: &[u8]) -> std::io::Result<()> {
+        let Some(slot) = self.header.sections.get_mut(self.next) else {
+            return Err(std::io::Error::other(format!(
+                "a store has {SECTION_COUNT} sections, not more"
+            )));
+        };
+        *slot = (self.pos, s.len() as u64);
+        self.out.write_all(s)?;
+        self.crc.update(s);
+        self.pos += s.len() as u64;
+        let pad = (8 - self.pos % 8) % 8;
+        self.out.write_all(&[0u8; 8][..pad as usize])?;
+        self.pos += pad;
+        self.next += 1;
+        Ok(())
+    }
+
+    /// The writer, e.g. to flush and sync what is written so far.
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.out
+    }
+
+    /// Writes the real header once every section is written; returns the writer and the
+    /// store's size.
+    pub fn finish(mut self) -> std::io::Result<(W, u64)> {
+        use std::io::SeekFrom;
+        if self.next != SECTION_COUNT {
+            return Err(std::io::Error::other(format!(
+                "{} of a store's {SECTION_COUNT} sections written",
+                self.next
+            )));
+        }
+        self.header.body_crc = self.crc.finalize();
+        self.out.seek(SeekFrom::Start(0))?;
+        self.out.write_all(&self.header.to_bytes())?;
+        Ok((self.out, self.pos))
+    }
+}
+
 /// Writes a header placeholder, the sections, then the real header, to `out`.
 pub fn write_sections<W: Write + std::io::Seek>(
     out: &mut W,
-    mut header: Header,
+    header: Header,
     sections: [&[u8]; SECTION_COUNT],
 ) -> std::io::Result<u64> {
-    use std::io::SeekFrom;
-    out.write_all(&[0u8; HEADER_LEN])?;
-    let mut pos = HEADER_LEN as u64;
-    let mut crc = crc32fast::Hasher::new();
-    for (i, s) in sections.iter().enumerate() {
-        header.sections[i] = (pos, s.len() as u64);
-        out.write_all(s)?;
-        crc.update(s);
-        pos += s.len() as u64;
-        let pad = (8 - pos % 8) % 8;
-        out.write_all(&[0u8; 8][..pad as usize])?;
-        pos += pad;
+    let mut w = SectionWriter::new(out, header)?;
+    for s in sections {
+        w.section(s)?;
     }
-    header.body_crc = crc.finalize();
-    out.seek(SeekFrom::Start(0))?;
-    out.write_all(&header.to_bytes())?;
-    Ok(pos)
+    Ok(w.finish()?.1)
 }

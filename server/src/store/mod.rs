@@ -29,6 +29,7 @@ use relief_proto::tile::{TileSetInfo, TileShape};
 use relief_proto::tree::{NodeId, TreeShape};
 use serde::{Deserialize, Serialize};
 use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::Path;
 use tiles::TileRecord;
 
@@ -191,24 +192,12 @@ pub fn write_store(
     )?;
     let tshape = TileShape::new(input.width, input.height, input.tile_size)
         .map_err(|e| StoreError::Corrupt(e.to_string()))?;
-    let t0 = std::time::Instant::now();
-    let arrays = build::build_arrays(&geom, input.heights, |f| progress(f * TREE_SHARE));
-    // The node records now, and the tree's arrays dropped before the tile pyramid is built:
-    // the two never take memory at once.
-    let records = node_records(&geom.shape, &arrays)?;
-    drop(arrays);
-    let build_s = t0.elapsed().as_secs_f64();
-    let t1 = std::time::Instant::now();
     let kind = mesh_kind(&input.meta.tile_mesh).ok_or_else(|| {
         StoreError::Input(format!(
             "tile mesh `{}` is unknown: use grid, rqt or tin",
             input.meta.tile_mesh
         ))
     })?;
-    let pyramid = tiles::build_pyramid(&tshape, input.heights, input.z_quantum as f32, kind, |f| {
-        progress(TREE_SHARE + f * (1.0 - TREE_SHARE))
-    });
-    let tiles_s = t1.elapsed().as_secs_f64();
     let voids: Vec<u8> = {
         use rayon::prelude::*;
         input
@@ -238,19 +227,44 @@ pub fn write_store(
         path: tmp.0.display().to_string(),
         source,
     };
-    let mut file = std::io::BufWriter::new(File::create(&tmp.0).map_err(tmp_io)?);
-    let size = format::write_sections(
-        &mut file,
-        header,
-        [
-            bytemuck::cast_slice(&records),
-            &voids,
-            &meta,
-            bytemuck::cast_slice(&pyramid.records),
-            &pyramid.data,
-        ],
-    )
-    .map_err(tmp_io)?;
+    let file = File::create(&tmp.0).map_err(tmp_io)?;
+    let t0 = std::time::Instant::now();
+    let arrays = build::build_arrays(&geom, input.heights, |f| progress(f * TREE_SHARE));
+    // The node records now, and the tree's arrays dropped before the tile pyramid is built:
+    // the two never take memory at once.
+    let records = node_records(&geom.shape, &arrays)?;
+    drop(arrays);
+    let build_s = t0.elapsed().as_secs_f64();
+    // The first sections (the node records are most of a store) are written, and synced, on a
+    // thread of their own while the tile pyramid is built: writing is the kernel's copying and
+    // the disk's time, which would otherwise follow the pyramid on one core.
+    let (pyramid, tiles_s, first) = std::thread::scope(|scope| {
+        let writer = scope.spawn(|| -> std::io::Result<_> {
+            let mut w =
+                format::SectionWriter::new(BufWriter::with_capacity(1 << 20, file), header)?;
+            w.section(bytemuck::cast_slice(&records))?;
+            w.section(&voids)?;
+            w.section(&meta)?;
+            w.get_mut().flush()?;
+            w.get_mut().get_ref().sync_data()?;
+            Ok(w)
+        });
+        let t1 = std::time::Instant::now();
+        let pyramid =
+            tiles::build_pyramid(&tshape, input.heights, input.z_quantum as f32, kind, |f| {
+                progress(TREE_SHARE + f * (1.0 - TREE_SHARE))
+            });
+        let tiles_s = t1.elapsed().as_secs_f64();
+        let first = writer
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (pyramid, tiles_s, first)
+    });
+    let mut w = first.map_err(tmp_io)?;
+    w.section(bytemuck::cast_slice(&pyramid.records))
+        .and_then(|()| w.section(&pyramid.data))
+        .map_err(tmp_io)?;
+    let (file, size) = w.finish().map_err(tmp_io)?;
     let file = file.into_inner().map_err(|e| tmp_io(e.into_error()))?;
     file.sync_all().map_err(tmp_io)?;
     std::fs::rename(&tmp.0, path).map_err(io)?;
