@@ -272,27 +272,49 @@ pub fn write_store(
     Ok((size, build_s, tiles_s))
 }
 
-/// The tree's arrays as node records in the store's layout ([`layout`]).
+/// The tree's arrays as node records in the store's layout ([`layout`]), each level's quads a
+/// row of parents at a time on every core (a row of parents' quads is one run of slots).
 fn node_records(shape: &TreeShape, arrays: &build::TreeArrays) -> Result<Vec<u32>, StoreError> {
+    use rayon::prelude::*;
     let lay = QuadLayout::new(shape);
     let mut out = vec![0u32; lay.len() as usize];
-    let mut i = 0usize;
-    for level in 0..=shape.depth() {
-        let (w, h) = shape.level_dims(level);
-        for y in 0..h {
-            for x in 0..w {
-                let z = arrays.z[i];
-                if z.abs() > layout::Z_LIMIT {
-                    return Err(StoreError::Corrupt(format!(
-                        "a height of {z} z quanta does not fit the store's 24-bit heights; \
-                         build with a larger --z-quantum"
-                    )));
-                }
-                let code = arrays.err.get(i).copied().unwrap_or(0);
-                out[lay.slot(NodeId { level, x, y })] = layout::record(z, code);
-                i += 1;
-            }
+    let record = |i: usize| -> Result<u32, i32> {
+        let z = arrays.z[i];
+        if z.abs() > layout::Z_LIMIT {
+            return Err(z);
         }
+        Ok(layout::record(z, arrays.err.get(i).copied().unwrap_or(0)))
+    };
+    let too_high = |z: i32| {
+        StoreError::Corrupt(format!(
+            "a height of {z} z quanta does not fit the store's 24-bit heights; \
+             build with a larger --z-quantum"
+        ))
+    };
+    let (root, mut rest) = out.split_at_mut(1);
+    root[0] = record(0).map_err(too_high)?;
+    for level in 1..=shape.depth() {
+        let (pw, ph) = shape.level_dims(level - 1);
+        let (w, h) = shape.level_dims(level);
+        let (quads, tail) = rest.split_at_mut(4 * pw as usize * ph as usize);
+        rest = tail;
+        let first = shape.level_offset(level) as usize;
+        quads
+            .par_chunks_mut(4 * pw as usize)
+            .enumerate()
+            .try_for_each(|(py, run)| {
+                for dy in 0..2 {
+                    let y = 2 * py + dy;
+                    if y >= h as usize {
+                        continue;
+                    }
+                    for x in 0..w as usize {
+                        run[4 * (x >> 1) + (x & 1) + 2 * dy] = record(first + y * w as usize + x)?;
+                    }
+                }
+                Ok(())
+            })
+            .map_err(too_high)?;
     }
     Ok(out)
 }

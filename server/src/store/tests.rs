@@ -40,6 +40,21 @@ fn round_trip() {
     assert!(!s.is_void(1, 0));
     assert_eq!(s.sample_z(3, 0), 30); // 7.5 m / 0.25 m
     assert_eq!(s.meta().source, "test");
+    // Every node's record holds its height and error code from the tree's arrays, on a grid
+    // whose border nodes lack children (their slots stay empty).
+    let (w, h) = (37u32, 21u32);
+    let heights: Vec<f32> = (0..w * h).map(|i| (i % 13) as f32 * 2.5).collect();
+    let arrays = build::build_arrays(g, &heights, |_| {});
+    let mut filled = 0;
+    for i in 0..g.shape.node_count() {
+        let node = g.shape.node(i).unwrap();
+        let rec = s.record(node);
+        let code = arrays.err.get(i as usize).copied().unwrap_or(0);
+        assert_eq!(rec, layout::record(arrays.z[i as usize], code), "{node:?}");
+        filled += 1;
+    }
+    let empty = s.nodes().iter().filter(|&&r| r == 0).count() as u64;
+    assert!(s.layout().len() - filled <= empty);
 }
 
 fn expect_err(path: &Path, bytes: &[u8]) -> StoreError {
