@@ -26,7 +26,9 @@ use crate::lod::tile::mesh::HeightGrid;
 use crate::lod::tile::mesh::curtain::{
     Polyline, SideCurtain, across, fan, side_curtain, side_polyline,
 };
-use crate::lod::tile::mesh::pyramid::{PyramidMesh, Tolerances, irregular_error, mesh_tile};
+use crate::lod::tile::mesh::pyramid::{
+    PyramidMesh, Quantised, Tolerances, irregular_error, mesh_tile,
+};
 use bytemuck::{Pod, Zeroable};
 use relief_proto::tile::body::curtain::encode_curtains;
 use relief_proto::tile::body::{
@@ -82,12 +84,19 @@ pub fn build_pyramid(
             (v + 0.5f32.copysign(v)) as i32
         })
         .collect();
-    let zf: Vec<f32> = zq.par_iter().map(|&v| v as f32 * quantum).collect();
-    let (Some(orig), Some(quantised)) = (
-        HeightGrid::new(w as usize, h as usize, heights),
-        HeightGrid::new(w as usize, h as usize, &zf),
-    ) else {
+    // The heights in metres again, as a grid, only for `tin`: the other kinds take them from
+    // `zq` sample by sample (the same `f32`).
+    let zf: Vec<f32> = match kind {
+        MeshKind::Tin => zq.par_iter().map(|&v| v as f32 * quantum).collect(),
+        MeshKind::Grid | MeshKind::Rqt => Vec::new(),
+    };
+    let Some(orig) = HeightGrid::new(w as usize, h as usize, heights) else {
         unreachable!("a tile shape has at least 2 x 2 samples, one height each");
+    };
+    let quantised = Quantised {
+        zq: &zq,
+        quantum,
+        metres: HeightGrid::new(w as usize, h as usize, &zf),
     };
     let n = shape.tile_count() as usize;
     let tile = |i: usize| shape.tile(i as u32).unwrap_or(TileId::ROOT);
@@ -100,7 +109,7 @@ pub fn build_pyramid(
         n,
         |i| {
             let span = shape.span(tile(i));
-            let z = span.map_vertices(|c, r| quantised.at(c, r));
+            let z = span.map_vertices(|c, r| zq[(r * w + c) as usize] as f32 * quantum);
             let (err, lo, hi) = grid_error_bounds(&span, &z, &orig);
             (err, ((lo * inv).floor() as i32, (hi * inv).ceil() as i32))
         },
@@ -111,7 +120,7 @@ pub fn build_pyramid(
     // Every tile's mesh first: an `rqt` tile's curtains depend on its neighbours' borders.
     let meshes: Vec<PyramidMesh> = par_map(
         n,
-        |i| mesh_tile(kind, shape, tile(i), &zq, &quantised, &tol),
+        |i| mesh_tile(kind, shape, tile(i), &quantised, &tol),
         |f| {
             if kind != MeshKind::Grid {
                 progress((1.0 + f) / steps)

@@ -94,18 +94,32 @@ pub struct PyramidMesh {
     pub blob: Vec<u8>,
 }
 
-/// Tile `t`'s mesh of `kind` at its tolerance in `tol`. `zq` holds the whole grid's
-/// quantised heights and `quantised` the same in metres.
+/// The whole grid's quantised heights: in z quanta, and in metres for `tin` meshes, which
+/// triangulate a height grid (the other kinds take a sample's metres as `zq * quantum`, the
+/// same `f32`, so that a build of them holds no second copy of the grid).
+pub struct Quantised<'a> {
+    /// Heights in z quanta, row-major.
+    pub zq: &'a [i32],
+    /// Metres a quantum.
+    pub quantum: f32,
+    /// `zq * quantum` as a grid, where `tin` meshes are made.
+    pub metres: Option<HeightGrid<'a>>,
+}
+
+/// Tile `t`'s mesh of `kind` at its tolerance in `tol`, over the grid's quantised heights `q`.
+///
+/// # Panics
+/// If `kind` is `tin` and `q` holds no grid in metres.
 pub fn mesh_tile(
     kind: MeshKind,
     shape: &TileShape,
     t: TileId,
-    zq: &[i32],
-    quantised: &HeightGrid<'_>,
+    q: &Quantised<'_>,
     tol: &Tolerances,
 ) -> PyramidMesh {
     let span = shape.span(t);
     let w = shape.width();
+    let zq = q.zq;
     let at = |c: u32, r: u32| zq[(r * w + c) as usize];
     let grid = || {
         let z = span.map_vertices(at);
@@ -138,7 +152,7 @@ pub fn mesh_tile(
         MeshKind::Rqt => {
             let (nx, ny) = (span.nx(), span.ny());
             let s = span.stride;
-            let lattice = span.map_vertices(|c, r| quantised.at(c, r));
+            let lattice = span.map_vertices(|c, r| at(c, r) as f32 * q.quantum);
             let errors = HeightGrid::new(nx as usize, ny as usize, &lattice)
                 .filter(|_| rqt_side(&span).is_some())
                 .and_then(|g| RqtErrors::new(&g).ok());
@@ -171,6 +185,9 @@ pub fn mesh_tile(
         }
         MeshKind::Tin => {
             let line = |_: u8| tol.finest();
+            let Some(quantised) = &q.metres else {
+                panic!("tin meshes are made from the quantised heights in metres");
+            };
             let m = tile_tin(shape, t, quantised, tol.tile(shape.index(t)), Some(&line));
             irregular(m, MeshKind::Tin, None)
         }
@@ -240,7 +257,12 @@ mod tests {
             for i in 0..shape.tile_count() {
                 let t = shape.tile(i).unwrap();
                 let span = shape.span(t);
-                let m = mesh_tile(kind, &shape, t, &zq, &quantised, &tol);
+                let qg = Quantised {
+                    zq: &zq,
+                    quantum: q,
+                    metres: Some(quantised),
+                };
+                let m = mesh_tile(kind, &shape, t, &qg, &tol);
                 let Some(mesh) = &m.irregular else {
                     // Only a clipped tile falls back to a grid, and only for rqt.
                     assert_eq!(kind, MeshKind::Rqt);
