@@ -78,7 +78,9 @@ pub struct BuildBenchReport {
     pub store_bytes: u64,
     /// `store_bytes / samples`.
     pub store_bytes_per_sample: f64,
-    /// Bytes read from the input files or URLs (0 for synthetic input).
+    /// Bytes read from the input files or URLs (0 for synthetic input): a file's bytes each
+    /// time they are read (the decoder reads a TIFF's directory more than once), a URL's as
+    /// fetched (its blocks are cached).
     pub source_bytes_read: u64,
     /// Their size, bytes.
     pub source_bytes: u64,

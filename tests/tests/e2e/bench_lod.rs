@@ -1,7 +1,8 @@
 //! End to end through the library: the committed Fuji crop is built into a store and flown along
 //! both paths; every delta crosses the wire codec into a client mirror with incremental fans.
 //! The benchmark's integrity counters must all be zero; its figures are not asserted (they are
-//! reported by `relief-server bench lod`, not tested).
+//! reported by `relief-server bench lod`, not tested). `bench build` must report the store it
+//! built and the bytes it read, whatever its timings.
 
 use relief_proto::path::PathKind;
 use relief_server::bench::lod::{LodBenchOptions, run};
@@ -52,4 +53,55 @@ fn interleaved_sessions_make_the_same_deltas_as_sessions_alone() {
         "{r:?}"
     );
     assert!(r.session_bytes_mean > 0.0, "{r:?}");
+}
+
+#[test]
+fn bench_build_reports_the_store_it_built_and_the_bytes_it_read() {
+    // The embedded crop written out as a GeoTIFF file, so that the read is counted.
+    use relief_server::bench::build::{BuildBenchOptions, run};
+    let dir = tempfile::tempdir().unwrap();
+    let tif = dir.path().join("fuji_crop.tif");
+    std::fs::write(&tif, dem::EMBEDDED_FUJI).unwrap();
+    let store = dir.path().join("crop.relief");
+    let opts = BuildBenchOptions {
+        inputs: vec![tif.display().to_string()],
+        dem: relief_server::dem::DemArgs {
+            quiet: true,
+            ..Default::default()
+        },
+        build: Default::default(),
+        threads: Some(2),
+        output: Some(store.clone()),
+    };
+    let r = run(&opts).unwrap();
+    assert_eq!(
+        (r.width, r.height, r.samples),
+        (257, 193, 257 * 193),
+        "{r:?}"
+    );
+    assert_eq!(r.threads, 2);
+    assert_eq!(
+        r.store_bytes,
+        std::fs::metadata(&store).unwrap().len(),
+        "{r:?}"
+    );
+    assert_eq!(r.source_bytes, dem::EMBEDDED_FUJI.len() as u64, "{r:?}");
+    // The crop is 257 x 193 uncompressed int16 samples: a whole read reads all of them, and
+    // the directory again where the decoder seeks back to it (a few KB), never the file twice.
+    let samples_bytes = 257 * 193 * 2;
+    assert!(
+        r.source_bytes_read >= samples_bytes && r.source_bytes_read < 2 * r.source_bytes,
+        "{r:?}"
+    );
+    assert!(r.peak_rss_bytes > 0 && r.cpu_s > 0.0, "{r:?}");
+    let phases = r.read_s + r.tree_s + r.tiles_s + r.write_s;
+    assert!((phases - r.total_s).abs() < 1e-6, "{r:?}");
+    // The store it kept is the one `build` makes.
+    let d = dem::load_all(&[tif.display().to_string()], &Default::default()).unwrap();
+    let again = dir.path().join("again.relief");
+    relief_server::preprocess::build_store(&d, &again, &Default::default()).unwrap();
+    assert_eq!(
+        std::fs::read(&store).unwrap(),
+        std::fs::read(&again).unwrap()
+    );
 }
