@@ -125,7 +125,7 @@ fn recorded_source(source: &str) -> String {
         .split(" + ")
         .map(|part| {
             if crate::dem::is_url(part) {
-                let path = part.split(['?', '#']).next().unwrap_or(part);
+                let path = crate::dem::http_range::without_query(part);
                 return match path.rsplit('/').next() {
                     Some(name) if !name.is_empty() => name.to_string(),
                     _ => path.to_string(),

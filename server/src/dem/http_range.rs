@@ -50,6 +50,12 @@ impl Default for RangeOptions {
     }
 }
 
+/// `url` without its query string and fragment, as messages and stores name it: a presigned
+/// URL's query holds its credentials.
+pub fn without_query(url: &str) -> &str {
+    url.split(['?', '#']).next().unwrap_or(url)
+}
+
 /// A remote file as `Read + Seek`, by HTTP range requests; see the module docs.
 pub struct RangeReader {
     /// The URL requests go to.
@@ -91,7 +97,7 @@ impl RangeReader {
 
     /// Opens `url` with `opts`.
     pub fn open_with(url: &str, opts: RangeOptions) -> Result<RangeReader, DemError> {
-        let shown = url.split(['?', '#']).next().unwrap_or(url).to_string();
+        let shown = without_query(url).to_string();
         let config = ureq::Agent::config_builder()
             .timeout_connect(Some(opts.timeout))
             .timeout_per_read(Some(opts.timeout))

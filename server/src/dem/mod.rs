@@ -307,7 +307,20 @@ pub fn load(spec: &str, opts: &LoadOptions) -> Result<Dem, DemError> {
         return load_all(&[spec], opts);
     }
     let raw = read_file(spec, opts)?;
-    finish(spec, raw, opts)
+    finish(&shown_source(spec), raw, opts)
+}
+
+/// `source` (inputs joined by " + ") as messages and the [`Dem`] name it: URLs without their
+/// query strings ([`http_range::without_query`]), files as given.
+fn shown_source(source: &str) -> String {
+    source
+        .split(" + ")
+        .map(|part| match is_url(part) {
+            true => http_range::without_query(part),
+            false => part,
+        })
+        .collect::<Vec<_>>()
+        .join(" + ")
 }
 
 /// Loads one DEM ([`load`]) or, given several inputs, the mosaic of them ([`mosaic`]): what
@@ -332,7 +345,7 @@ pub fn load_all<S: AsRef<str>>(specs: &[S], opts: &LoadOptions) -> Result<Dem, D
         many => {
             let specs: Vec<&str> = many.iter().map(String::as_str).collect();
             let (source, raw) = mosaic::join(&specs, opts)?;
-            finish(&source, raw, opts)
+            finish(&shown_source(&source), raw, opts)
         }
     }
 }

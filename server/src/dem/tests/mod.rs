@@ -320,3 +320,14 @@ fn origin_places_input_without_a_georeference() {
             .contains("latitude")
     );
 }
+
+#[test]
+fn urls_are_named_without_their_query_strings() {
+    // A presigned URL's query holds its credentials: messages and the DEM's name drop it.
+    assert_eq!(
+        shown_source("https://bucket.example.com/dem.tif?X-Amz-Signature=secret#x + N35E138.hgt"),
+        "https://bucket.example.com/dem.tif + N35E138.hgt"
+    );
+    // A file name may hold a `?` of its own.
+    assert_eq!(shown_source("odd?name.tif"), "odd?name.tif");
+}
