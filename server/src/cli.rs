@@ -15,6 +15,7 @@ use std::path::PathBuf;
 
 mod health;
 mod info;
+mod store_args;
 
 #[derive(Parser)]
 #[command(
@@ -56,23 +57,8 @@ enum Command {
         /// Where to write the store.
         #[arg(short, long)]
         output: PathBuf,
-        /// Metres per stored height unit [default: 1 for whole-metre DEMs, else 0.1].
-        #[arg(long)]
-        z_quantum: Option<f64>,
-        /// Cells per side of the tile stream's tiles: a power of two from 2 to 256 (64 gives
-        /// Cesium's 65 x 65-vertex tiles).
-        #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
-        tile_size: u32,
-        /// How the tile stream's tiles are meshed: `grid` (every lattice vertex; crack
-        /// patches or skirts), `rqt` (paper 002's restricted quadtree; crack curtains or
-        /// skirts) or `tin` (paper
-        /// 003's greedy Delaunay TIN with shared borders, or skirts). See docs/streams.md.
-        #[arg(long, value_enum, default_value = "grid")]
-        tile_mesh: TileMeshArg,
-        /// Threads to read and build on [default: one per core]. The store is the same bytes
-        /// whatever the number.
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
-        threads: Option<u32>,
+        #[command(flatten)]
+        store: store_args::StoreArgs,
         #[command(flatten)]
         dem: DemArgs,
     },
@@ -139,18 +125,8 @@ enum BenchCommand {
         /// The DEM (same forms as `build`'s inputs).
         #[arg(long, required = true, num_args = 1..)]
         dem: Vec<String>,
-        /// Threads to build on [default: one per core].
-        #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
-        threads: Option<u32>,
-        /// Metres per stored height unit [default: as `build`].
-        #[arg(long)]
-        z_quantum: Option<f64>,
-        /// Cells per side of the tile pyramid's tiles (as `build`).
-        #[arg(long, default_value_t = crate::store::DEFAULT_TILE_SIZE)]
-        tile_size: u32,
-        /// The tile pyramid's mesh kind (as `build`).
-        #[arg(long, value_enum, default_value = "grid")]
-        tile_mesh: TileMeshArg,
+        #[command(flatten)]
+        store: store_args::StoreArgs,
         /// Keep the store at this path [default: a temporary folder, removed after].
         #[arg(long)]
         output: Option<PathBuf>,
@@ -465,24 +441,14 @@ fn run() -> anyhow::Result<()> {
         Command::Build {
             inputs,
             output,
-            z_quantum,
-            tile_size,
-            tile_mesh,
-            threads,
+            store,
             dem,
         } => {
-            relief_proto::tile::TileShape::new(2, 2, tile_size)?;
-            let pool =
-                preprocess::thread_pool(threads.map(|t| t as usize)).map_err(anyhow::Error::msg)?;
+            let opts = store.options(!dem.quiet)?;
+            let pool = preprocess::thread_pool(store.threads()).map_err(anyhow::Error::msg)?;
             let d = pool
                 .install(|| dem.load(&inputs))
                 .context("cannot load the DEM")?;
-            let opts = preprocess::BuildOptions {
-                quantum: z_quantum,
-                tile_size,
-                tile_mesh: tile_mesh.into(),
-                progress: !dem.quiet,
-            };
             let rep = pool
                 .install(|| preprocess::build_store(&d, &output, &opts))
                 .context("cannot build the store")?;
@@ -531,26 +497,17 @@ fn run() -> anyhow::Result<()> {
             which:
                 BenchCommand::Build {
                     dem,
-                    threads,
-                    z_quantum,
-                    tile_size,
-                    tile_mesh,
+                    store,
                     output,
                     json,
                     dem_args,
                 },
         } => {
-            relief_proto::tile::TileShape::new(2, 2, tile_size)?;
             let opts = crate::bench::build::BuildBenchOptions {
                 inputs: dem,
-                build: preprocess::BuildOptions {
-                    quantum: z_quantum,
-                    tile_size,
-                    tile_mesh: tile_mesh.into(),
-                    progress: !dem_args.quiet,
-                },
+                build: store.options(!dem_args.quiet)?,
                 dem: dem_args,
-                threads: threads.map(|t| t as usize),
+                threads: store.threads(),
                 output,
             };
             let report = crate::bench::build::run(&opts)?;

@@ -112,15 +112,14 @@ pub fn run(opts: &BuildBenchOptions) -> anyhow::Result<BuildBenchReport> {
         .unwrap_or_else(|| dir.path().join("bench.relief"));
     let (cpu0, _) = usage();
     let t0 = Instant::now();
-    let (dem, rep) = pool.install(|| -> anyhow::Result<_> {
+    let (dem, read_s, rep) = pool.install(|| -> anyhow::Result<_> {
         let dem = opts.dem.load(&opts.inputs).context("cannot load the DEM")?;
         let read_s = t0.elapsed().as_secs_f64();
         let rep = build_store(&dem, &path, &opts.build).context("cannot build the store")?;
-        Ok(((dem, read_s), rep))
+        Ok((dem, read_s, rep))
     })?;
     let total_s = t0.elapsed().as_secs_f64();
     let (cpu1, peak_rss_bytes) = usage();
-    let ((dem, read_s), rep) = (dem, rep);
     let samples = u64::from(dem.width) * u64::from(dem.height);
     let n = samples as f64;
     let build_s = total_s - read_s;

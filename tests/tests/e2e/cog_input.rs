@@ -22,6 +22,17 @@ use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_relief-test-server");
 
+/// `gdal_translate` options of an int16 COG in 128 x 128 tiles, deflate with the horizontal
+/// predictor: the served and the corrupted files.
+const DEFLATE_128: &[&str] = &[
+    "-co",
+    "BLOCKSIZE=128",
+    "-co",
+    "COMPRESS=DEFLATE",
+    "-co",
+    "PREDICTOR=STANDARD",
+];
+
 /// The path of a Debian tool, or a failure that says how to install it.
 fn tool(name: &str, package: &str) -> PathBuf {
     ["/usr/bin", "/usr/sbin", "/usr/local/bin"]
@@ -238,18 +249,7 @@ fn cogs_served_by_nginx_load_by_url_and_a_window_fetches_one_tile() {
     let src = fuji(dir.path());
     let www = dir.path().join("www");
     let small = www.join("fuji_crop.tif");
-    cog(
-        &src,
-        &small,
-        &[
-            "-co",
-            "BLOCKSIZE=128",
-            "-co",
-            "COMPRESS=DEFLATE",
-            "-co",
-            "PREDICTOR=STANDARD",
-        ],
-    );
+    cog(&src, &small, DEFLATE_128);
     // 2048 x 2048 in 64 tiles of 256 x 256, for a window read.
     let big = www.join("fuji_big.tif");
     cog(
@@ -356,18 +356,7 @@ fn truncated_cogs_and_lying_tile_byte_counts_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let src = fuji(dir.path());
     let good = dir.path().join("good.tif");
-    cog(
-        &src,
-        &good,
-        &[
-            "-co",
-            "BLOCKSIZE=128",
-            "-co",
-            "COMPRESS=DEFLATE",
-            "-co",
-            "PREDICTOR=STANDARD",
-        ],
-    );
+    cog(&src, &good, DEFLATE_128);
     let bytes = std::fs::read(&good).unwrap();
     let (entry, count) = tile_byte_count(&bytes, 4);
     let half = bytes[..bytes.len() / 2].to_vec();
