@@ -3,8 +3,9 @@
 #   step NAME COMMAND...    runs COMMAND, appends "NAME<TAB>SECONDS<TAB>EXIT" to $RELIEF_STEP_LOG
 #                           (when set) and returns COMMAND's exit status
 #   step_tests NAME COMMAND...
-#                           runs COMMAND (one that ends in a `cargo test`), passes its output
-#                           through, and logs what comes before the first test binary (the
+#                           runs COMMAND (one that ends in a `cargo test`) in a session of its
+#                           own, passes its output through, names and kills the processes
+#                           COMMAND leaves running, and logs what comes before the first test binary (the
 #                           build) as "NAME (build)" and each test binary's run as
 #                           "NAME: BINARY"
 #   step_table T0           prints the logged steps as a table with their sum and the wall time
@@ -35,14 +36,34 @@ _step_log() {
 # Each output line is stamped with the time it arrived, so that the build (up to the first
 # "Running" line) and each test binary (up to the next one) get their own wall time.
 step_tests() {
-    local name=$1 t0 stamped rc=0
+    local name=$1 t0 stamped fifo reader pid rc=0
     shift
     t0=$EPOCHREALTIME
     stamped=$(mktemp)
-    "$@" 2>&1 | while IFS= read -r line; do
+    fifo=$(mktemp -u)
+    mkfifo "$fifo"
+    while IFS= read -r line; do
         printf '%s\n' "$line"
         printf '%s\t%s\n' "$EPOCHREALTIME" "$line" >>"$stamped"
-    done || rc=$?
+    done <"$fifo" &
+    reader=$!
+    # COMMAND runs in a session of its own, so that a process its tests leave running (one a
+    # failed test never stopped) is found when COMMAND ends, named and killed: it would hold
+    # the output pipe open, and the reader would wait for it, and the run with it, forever.
+    # (A background job of a script is no group leader, so setsid starts the session in the
+    # process itself and its pid names the session.)
+    setsid "$@" >"$fifo" 2>&1 &
+    pid=$!
+    trap 'pkill -KILL -s "$pid"; exit 130' INT TERM
+    wait "$pid" || rc=$?
+    if pgrep -s "$pid" >/dev/null; then
+        echo "step $name left these running; killed:"
+        ps -o pid=,args= -s "$pid"
+        pkill -KILL -s "$pid" || true
+    fi
+    trap - INT TERM
+    wait "$reader" || true
+    rm -f "$fifo"
     # `cargo test` names a binary in its "Running" line (unit tests by source file, the
     # integration tests by target) and a crate's doctests in its "Doc-tests" line.
     if [[ -n ${RELIEF_STEP_LOG:-} ]]; then

@@ -126,10 +126,35 @@ impl TestServer {
     }
 }
 
+/// A child process that is killed and reaped when dropped, a failed assertion's unwinding
+/// included: a process left running would hold the test harness's output pipe open, and the
+/// run that reads it would wait for it forever.
+pub struct Reaped(pub std::process::Child);
+
+impl Drop for Reaped {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+impl std::ops::Deref for Reaped {
+    type Target = std::process::Child;
+    fn deref(&self) -> &std::process::Child {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for Reaped {
+    fn deref_mut(&mut self) -> &mut std::process::Child {
+        &mut self.0
+    }
+}
+
 /// The server as a child process (the `relief-test-server` binary, which is `relief-server`).
 pub struct ChildServer {
     /// The process.
-    pub child: std::process::Child,
+    pub child: Reaped,
     /// Where it listens.
     pub addr: SocketAddr,
 }
@@ -170,7 +195,10 @@ impl ChildServer {
             .envs(envs.iter().copied())
             .spawn()
             .expect("spawn server");
-        let s = ChildServer { child, addr };
+        let s = ChildServer {
+            child: Reaped(child),
+            addr,
+        };
         let deadline = Instant::now() + Duration::from_secs(30);
         loop {
             let ok = relief_client::http::request(
@@ -205,13 +233,6 @@ impl ChildServer {
             std::thread::sleep(Duration::from_millis(10));
         }
         None
-    }
-}
-
-impl Drop for ChildServer {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 

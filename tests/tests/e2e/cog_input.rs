@@ -15,7 +15,7 @@
 use relief_server::dem::cog::TiffWindows;
 use relief_server::dem::http_range::RangeReader;
 use relief_server::dem::{Dem, LoadOptions, load_all};
-use relief_tests::free_addr;
+use relief_tests::{Reaped, free_addr};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
@@ -190,16 +190,9 @@ fn cogs_from_gdal_load_and_build_the_same_terrain_as_the_original() {
 /// nginx serving `root` on a free 127.0.0.1 port, in the foreground, killed on drop.
 struct Nginx {
     /// The process.
-    child: std::process::Child,
+    _child: Reaped,
     /// Where it listens.
     addr: std::net::SocketAddr,
-}
-
-impl Drop for Nginx {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
 }
 
 impl Nginx {
@@ -220,16 +213,18 @@ impl Nginx {
         );
         let conf_path = dir.join("nginx.conf");
         std::fs::write(&conf_path, conf).unwrap();
-        let mut child = Command::new(bin)
-            .arg("-p")
-            .arg(dir)
-            .arg("-e")
-            .arg(dir.join("error.log"))
-            .arg("-c")
-            .arg(&conf_path)
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .expect("start nginx");
+        let mut child = Reaped(
+            Command::new(bin)
+                .arg("-p")
+                .arg(dir)
+                .arg("-e")
+                .arg(dir.join("error.log"))
+                .arg("-c")
+                .arg(&conf_path)
+                .stderr(std::process::Stdio::null())
+                .spawn()
+                .expect("start nginx"),
+        );
         let deadline = Instant::now() + Duration::from_secs(20);
         while std::net::TcpStream::connect(addr).is_err() {
             if let Ok(Some(status)) = child.try_wait() {
@@ -239,7 +234,10 @@ impl Nginx {
             assert!(Instant::now() < deadline, "nginx never listened on {addr}");
             std::thread::sleep(Duration::from_millis(20));
         }
-        Nginx { child, addr }
+        Nginx {
+            _child: child,
+            addr,
+        }
     }
 }
 

@@ -9,7 +9,7 @@
 //! server; without them these tests fail and say so.
 
 use relief_server::serve::config::FileConfig;
-use relief_tests::{free_addr, repo, target_dir};
+use relief_tests::{Reaped, free_addr, repo, target_dir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -239,16 +239,18 @@ async fn the_static_server_serves_from_an_empty_root() {
         .unwrap();
     }
     let addr = free_addr();
-    let mut child = chroot("10001:10001")
-        .arg("serve")
-        .env_clear()
-        .env("PATH", "/usr/sbin:/usr/bin:/sbin:/bin")
-        .env("RELIEF_ADDR", addr.to_string())
-        .env("RELIEF_STORE", "/srv/terrain.relief")
-        .env("RELIEF_CACHE_DIR", "/var/cache/relief")
-        .env("RELIEF_LOG", "warn")
-        .spawn()
-        .unwrap();
+    let mut child = Reaped(
+        chroot("10001:10001")
+            .arg("serve")
+            .env_clear()
+            .env("PATH", "/usr/sbin:/usr/bin:/sbin:/bin")
+            .env("RELIEF_ADDR", addr.to_string())
+            .env("RELIEF_STORE", "/srv/terrain.relief")
+            .env("RELIEF_CACHE_DIR", "/var/cache/relief")
+            .env("RELIEF_LOG", "warn")
+            .spawn()
+            .unwrap(),
+    );
     let base = format!("http://{addr}");
     let deadline = Instant::now() + Duration::from_secs(30);
     while relief_client::http::request("GET", &format!("{base}/readyz"), "text/plain", vec![])

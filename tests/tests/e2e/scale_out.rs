@@ -12,7 +12,7 @@
 //! `tests/setup.sh` installs HAProxy; without it this test fails and says so.
 
 use relief_client::chaos::{self, ChaosOptions, ChaosReport, Drill};
-use relief_tests::{ChildServer, free_addr, repo};
+use relief_tests::{ChildServer, Reaped, free_addr, repo};
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -77,14 +77,7 @@ impl Drill for Replicas {
 }
 
 /// HAProxy running deploy/haproxy.cfg in the foreground, killed on drop.
-struct Haproxy(std::process::Child);
-
-impl Drop for Haproxy {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
+struct Haproxy(#[allow(dead_code, reason = "held: dropping it stops haproxy")] Reaped);
 
 async fn haproxy(front: SocketAddr, replicas: &[SocketAddr]) -> Haproxy {
     let bin = ["/usr/sbin/haproxy", "/usr/bin/haproxy"]
@@ -102,7 +95,7 @@ async fn haproxy(front: SocketAddr, replicas: &[SocketAddr]) -> Haproxy {
         .env("RELIEF_STATS", stats.to_string())
         .spawn()
         .expect("start haproxy");
-    let h = Haproxy(child);
+    let h = Haproxy(Reaped(child));
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
         let ok = relief_client::http::request(
