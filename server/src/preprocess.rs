@@ -152,10 +152,6 @@ fn build(
     let (quantum, tile_size, progress) = (opts.quantum, opts.tile_size, opts.progress);
     let quantum = quantum.unwrap_or_else(|| default_quantum(dem));
     use rayon::prelude::*;
-    let voids: Vec<bool> = (0..dem.heights.len())
-        .into_par_iter()
-        .map(|i| dem.is_void(i))
-        .collect();
     let (lo, hi) = dem
         .heights
         .par_iter()
@@ -177,7 +173,7 @@ fn build(
         spacing_y: dem.spacing_y,
         z_quantum: quantum,
         heights: &dem.heights,
-        voids: &voids,
+        voids: &dem.voids,
         tile_size,
         meta: StoreMeta {
             source: recorded_source(&dem.source),

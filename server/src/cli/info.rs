@@ -398,7 +398,7 @@ mod tests {
         let heights: Vec<f32> = (0..w * h)
             .map(|i| 800.0 + 3.0 * (i % w) as f32 - 1.7 * (i / w) as f32)
             .collect();
-        let voids = vec![false; heights.len()];
+        let voids = crate::dem::VoidMask::new(heights.len());
         let path = dir.path().join("plane.relief");
         let input = StoreInput {
             width: w,

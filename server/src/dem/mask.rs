@@ -57,6 +57,18 @@ impl VoidMask {
         self.len == 0
     }
 
+    /// The mask as bytes, bit `i % 8` of byte `i / 8` for sample `i` (the store's `voids`
+    /// section): the words themselves on a little-endian machine.
+    pub fn to_le_bytes(&self) -> std::borrow::Cow<'_, [u8]> {
+        let n = self.len.div_ceil(8);
+        if cfg!(target_endian = "little") {
+            std::borrow::Cow::Borrowed(&bytemuck::cast_slice(&self.bits)[..n])
+        } else {
+            let all: Vec<u8> = self.bits.iter().flat_map(|w| w.to_le_bytes()).collect();
+            std::borrow::Cow::Owned(all[..n].to_vec())
+        }
+    }
+
     /// The void samples' indices, ascending; cheap on sparse masks (whole empty words are skipped).
     pub fn iter(&self) -> impl Iterator<Item = usize> + '_ {
         self.bits.iter().enumerate().flat_map(|(w, &word)| {

@@ -56,10 +56,12 @@ use crate::geo::{GeoTransform, Georef};
 use std::io::{BufRead, BufReader, Seek, SeekFrom};
 use std::path::Path;
 
-/// Peak resident bytes a sample of a build, which holds the whole grid in memory: the heights,
-/// their quantised copies, the tree's arrays, the tile pyramid and the node records together.
-/// Measured by `relief-server bench build` on synthetic:16385: 24.6 for grid stores (`tin`
-/// holds 4 more); mosaics and void filling hold more while reading, hence the margin.
+/// Peak resident bytes a sample of a build, which holds the grid's heights in memory (the
+/// tree streams its records to the file, and a `grid` pyramid keeps only its blobs). Measured
+/// by `relief-server bench build`: 6.4 for a `grid` store of synthetic:8193, 6.8 for one of an
+/// 8193 x 8193 float32 COG; mosaics and void filling hold more while reading, hence the margin.
+/// `rqt` and `tin` pyramids hold every tile's mesh until the curtains are made: 43 and 48 bytes
+/// a sample on synthetic:4097, over this limit (docs/building.md).
 pub const BUILD_BYTES_PER_SAMPLE: u64 = 32;
 
 /// Samples accepted by default: as many as a build fits in the memory this process may use

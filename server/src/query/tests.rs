@@ -473,7 +473,7 @@ fn from_store_reads_the_stored_heights() {
         spacing_y: 20.0,
         z_quantum: 0.5,
         heights: &heights,
-        voids: &vec![false; heights.len()],
+        voids: &crate::dem::VoidMask::new(heights.len()),
         tile_size: 4,
         meta: Default::default(),
     };

@@ -17,106 +17,221 @@
 //!   distance as error makes the mesh's outline refine like any other detail, so it never visibly
 //!   recedes from or reaches past the grid's edge.
 //!
-//! The pass touches each node once, a level at a time from the leaves up, each level's rows on
-//! every core.
+//! The build streams. Rows of leaf heights go in a band at a time ([`TreeBuilder::push_rows`]);
+//! a level's rows, as soon as they pair up, make the next row of the level above and leave as
+//! node records in the store's layout ([`RecordSink`]), bottom level first. Each level holds at
+//! most a band's rows and one more, so memory is linear in the grid's width, whatever its
+//! height; the pairs of a band are built on every core, and the records are the same whatever
+//! the number of threads or the band's size.
 
+use super::StoreError;
+use super::layout::{self, Z_LIMIT, quantise};
 use relief_proto::haar::{self, Presence, error_code, error_value};
 use relief_proto::terrain::TerrainGeometry;
-use relief_proto::tree::{NodeId, TreeShape};
+use relief_proto::tree::NodeId;
 
-/// The tree's per-node arrays, indexed by dense node index ([`TreeShape::index`]).
-#[derive(Debug, Default)]
-pub struct TreeArrays {
-    /// Height of every node, in z quanta.
-    pub z: Vec<i32>,
-    /// Static-error code of every inner node (leaves have error 0 and are not stored).
-    pub err: Vec<u8>,
-    /// Lowest sample height in each inner node's subtree, in z quanta.
-    pub zmin: Vec<i32>,
-    /// Highest sample height in each inner node's subtree, in z quanta.
-    pub zmax: Vec<i32>,
+/// Where the node records go: each level's records in the store's order ([`layout`]), a run of
+/// whole quads at a time, the runs of one level in order; levels interleave, the root last.
+pub trait RecordSink {
+    /// The next records of `level` (for level 0, the root's one record).
+    fn records(&mut self, level: u8, records: &[u32]) -> Result<(), StoreError>;
 }
 
-/// Builds the arrays from row-major heights in metres (voids already filled).
-///
-/// `progress` is called with the fraction done after each level.
-pub fn build_arrays(
-    geom: &TerrainGeometry,
-    heights: &[f32],
-    mut progress: impl FnMut(f64),
-) -> TreeArrays {
-    let shape = &geom.shape;
-    let quantum = geom.z_quantum;
-    let n = shape.node_count() as usize;
-    let inner = shape.level_offset(shape.depth()) as usize;
-    let mut t = TreeArrays {
-        z: vec![0; n],
-        err: vec![0; inner],
-        zmin: vec![0; inner],
-        zmax: vec![0; inner],
-    };
-    let leaf0 = inner;
-    // Round half away from zero, without a libm call per sample.
-    let inv = 1.0 / quantum;
-    {
+/// The rows of one level not yet paired, from row `first` on.
+#[derive(Default)]
+struct Rows {
+    /// The first row held (even, until the level's last row has gone).
+    first: u32,
+    /// Heights, z quanta.
+    z: Vec<i32>,
+    /// The subtrees' lowest samples (empty at the leaf level, where they are `z`).
+    zmin: Vec<i32>,
+    /// The subtrees' highest samples (empty at the leaf level).
+    zmax: Vec<i32>,
+    /// Static-error codes (empty at the leaf level, where they are 0).
+    err: Vec<u8>,
+}
+
+/// The tree of one grid, built from its rows as they come.
+pub struct TreeBuilder<'g> {
+    geom: &'g TerrainGeometry,
+    /// One over the z quantum.
+    inv: f32,
+    /// Each level's unpaired rows, by level.
+    levels: Vec<Rows>,
+}
+
+impl<'g> TreeBuilder<'g> {
+    /// A builder of `geom`'s tree, no row in yet.
+    pub fn new(geom: &'g TerrainGeometry) -> TreeBuilder<'g> {
+        let depth = geom.shape.depth() as usize;
+        TreeBuilder {
+            geom,
+            inv: 1.0 / geom.z_quantum,
+            levels: (0..=depth).map(|_| Rows::default()).collect(),
+        }
+    }
+
+    /// The leaf rows taken so far.
+    pub fn rows_in(&self) -> u32 {
+        let leaves = &self.levels[self.geom.shape.depth() as usize];
+        leaves.first + (leaves.z.len() / self.geom.shape.width() as usize) as u32
+    }
+
+    /// Takes the next whole rows of heights in metres (voids filled) and sends `sink` every
+    /// record they complete.
+    pub fn push_rows(
+        &mut self,
+        heights: &[f32],
+        sink: &mut impl RecordSink,
+    ) -> Result<(), StoreError> {
         use rayon::prelude::*;
-        t.z[leaf0..]
+        let shape = &self.geom.shape;
+        let w = shape.width() as usize;
+        let rows = heights.len() / w;
+        if !heights.len().is_multiple_of(w)
+            || self.rows_in() as usize + rows > shape.height() as usize
+        {
+            return Err(StoreError::Input(format!(
+                "{} heights are not whole rows of {w} within the grid's {} rows",
+                heights.len(),
+                shape.height()
+            )));
+        }
+        let inv = self.inv;
+        let leaves = &mut self.levels[shape.depth() as usize];
+        let at = leaves.z.len();
+        leaves.z.resize(at + heights.len(), 0);
+        leaves.z[at..]
             .par_iter_mut()
             .zip(heights.par_iter())
-            .with_min_len(1 << 16)
-            .for_each(|(dst, &h)| {
-                let v = h * inv;
-                *dst = (v + 0.5f32.copysign(v)) as i32;
-            });
+            .with_min_len(1 << 14)
+            .for_each(|(dst, &h)| *dst = quantise(h, inv));
+        self.climb(sink)
     }
-    let total = n as f64;
-    let mut done = (n - inner) as f64;
-    progress(done / total);
-    for level in (0..shape.depth()).rev() {
-        build_level(geom, level, &mut t);
-        let (w, h) = shape.level_dims(level);
-        done += w as f64 * h as f64;
-        progress(done / total);
+
+    /// Checks that every row came in (and so every record went out).
+    pub fn finish(self) -> Result<(), StoreError> {
+        let h = self.geom.shape.height();
+        if self.rows_in() != h || self.levels.iter().any(|l| !l.z.is_empty()) {
+            return Err(StoreError::Input(format!(
+                "the tree took {} of the grid's {h} rows",
+                self.rows_in()
+            )));
+        }
+        Ok(())
     }
-    t
+
+    /// Pairs the rows of every level, from the leaves up, as far as they go.
+    fn climb(&mut self, sink: &mut impl RecordSink) -> Result<(), StoreError> {
+        use rayon::prelude::*;
+        let geom = self.geom;
+        let shape = &geom.shape;
+        for level in (0..=shape.depth()).rev() {
+            let (w, h) = shape.level_dims(level);
+            let wu = w as usize;
+            let rows = &self.levels[level as usize];
+            let held = rows.z.len() / wu;
+            if held == 0 {
+                break;
+            }
+            let leaf = level == shape.depth();
+            let code = |i: usize| if leaf { 0 } else { rows.err[i] };
+            let rec = |i: usize| -> Result<u32, StoreError> {
+                let z = rows.z[i];
+                if z.abs() > Z_LIMIT {
+                    return Err(StoreError::Corrupt(format!(
+                        "a height of {z} z quanta does not fit the store's 24-bit heights; \
+                         build with a larger --z-quantum"
+                    )));
+                }
+                Ok(layout::record(z, code(i)))
+            };
+            if level == 0 {
+                sink.records(0, &[rec(0)?])?;
+                self.levels[0] = Rows::default();
+                self.levels[0].first = 1;
+                break;
+            }
+            // Whole pairs, and the last row alone once it is in.
+            let all_in = rows.first as usize + held == h as usize;
+            let pairs = if all_in { held.div_ceil(2) } else { held / 2 };
+            if pairs == 0 {
+                break;
+            }
+            let (pw, _) = shape.level_dims(level - 1);
+            let pwu = pw as usize;
+            // This level's records, a run of quads per pair of rows.
+            let mut run = vec![0u32; pairs * 4 * pwu];
+            run.par_chunks_mut(4 * pwu)
+                .enumerate()
+                .try_for_each(|(p, quads)| {
+                    for dy in 0..2 {
+                        let y = 2 * p + dy;
+                        if y >= held {
+                            continue;
+                        }
+                        for x in 0..wu {
+                            quads[4 * (x >> 1) + (x & 1) + 2 * dy] = rec(y * wu + x)?;
+                        }
+                    }
+                    Ok::<(), StoreError>(())
+                })?;
+            sink.records(level, &run)?;
+            drop(run);
+            // The level above's rows, one per pair.
+            let py0 = rows.first / 2;
+            let mut up = Rows {
+                first: 0,
+                z: vec![0; pairs * pwu],
+                zmin: vec![0; pairs * pwu],
+                zmax: vec![0; pairs * pwu],
+                err: vec![0; pairs * pwu],
+            };
+            up.z.par_chunks_mut(pwu)
+                .zip(up.zmin.par_chunks_mut(pwu))
+                .zip(up.zmax.par_chunks_mut(pwu))
+                .zip(up.err.par_chunks_mut(pwu))
+                .enumerate()
+                .for_each(|(p, (((z, zmin), zmax), err))| {
+                    let from = 2 * p * wu;
+                    let below = Below {
+                        z: &rows.z[from..],
+                        zmin: rows.zmin.get(from..).unwrap_or(&[]),
+                        zmax: rows.zmax.get(from..).unwrap_or(&[]),
+                        err: rows.err.get(from..).unwrap_or(&[]),
+                    };
+                    build_row(
+                        geom,
+                        level - 1,
+                        py0 + p as u32,
+                        &below,
+                        [z, zmin, zmax],
+                        err,
+                    );
+                });
+            // The paired rows leave; an odd one waits for its partner.
+            let used_rows = (2 * pairs).min(held);
+            let used = used_rows * wu;
+            let rows = &mut self.levels[level as usize];
+            rows.z.drain(..used);
+            for v in [&mut rows.zmin, &mut rows.zmax] {
+                v.drain(..used.min(v.len()));
+            }
+            rows.err.drain(..used.min(rows.err.len()));
+            rows.first += used_rows as u32;
+            let above = &mut self.levels[level as usize - 1];
+            above.z.extend_from_slice(&up.z);
+            above.zmin.extend_from_slice(&up.zmin);
+            above.zmax.extend_from_slice(&up.zmax);
+            above.err.extend_from_slice(&up.err);
+        }
+        Ok(())
+    }
 }
 
-/// Level `level`'s nodes from their children's, one row of nodes per task on every core (rayon's
-/// pool). A row reads only the level below and writes only its own nodes, so the arrays are the
-/// same whatever the number of threads.
-fn build_level(geom: &TerrainGeometry, level: u8, t: &mut TreeArrays) {
-    use rayon::prelude::*;
-    let shape = &geom.shape;
-    let (w, h) = shape.level_dims(level);
-    let base = shape.level_offset(level) as usize;
-    let cbase = shape.level_offset(level + 1) as usize;
-    let n = w as usize * h as usize;
-    // The level is the slice before the next level's; the arrays of inner nodes end where the
-    // leaves begin.
-    let (z_up, z_below) = t.z.split_at_mut(cbase);
-    let inner = cbase.min(t.err.len());
-    let (zmin_up, zmin_below) = t.zmin.split_at_mut(inner);
-    let (zmax_up, zmax_below) = t.zmax.split_at_mut(inner);
-    let (err_up, err_below) = t.err.split_at_mut(inner);
-    let below = Below {
-        z: z_below,
-        zmin: zmin_below,
-        zmax: zmax_below,
-        err: err_below,
-    };
-    let w = w as usize;
-    z_up[base..base + n]
-        .par_chunks_mut(w)
-        .zip(zmin_up[base..base + n].par_chunks_mut(w))
-        .zip(zmax_up[base..base + n].par_chunks_mut(w))
-        .zip(err_up[base..base + n].par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, (((z, zmin), zmax), err))| {
-            build_row(geom, level, y as u32, &below, [z, zmin, zmax], err);
-        });
-}
-
-/// The arrays of the level below the one being built, indexed from that level's first node.
+/// The two rows of the level below that a row of nodes is built from (or the last row alone,
+/// when it has no partner), from the first one's first node.
 struct Below<'a> {
     z: &'a [i32],
     zmin: &'a [i32],
@@ -124,7 +239,8 @@ struct Below<'a> {
     err: &'a [u8],
 }
 
-/// Row `y` of level `level`: its nodes' heights, bounds and error codes.
+/// Row `y` of level `level`: its nodes' heights, bounds and error codes, from `below`, which
+/// starts at the first node of row `2 y` of the level below.
 fn build_row(
     geom: &TerrainGeometry,
     level: u8,
@@ -142,7 +258,7 @@ fn build_row(
     for x in 0..w {
         let east = 2 * x + 1 < cw;
         let p = Presence { east, south };
-        let c0 = (2 * y) as usize * cw as usize + (2 * x) as usize;
+        let c0 = (2 * x) as usize;
         let c2 = c0 + cw as usize;
         let idx = [c0, c0 + east as usize, if south { c2 } else { c0 }, {
             if south {
@@ -207,24 +323,43 @@ fn border_offset(geom: &TerrainGeometry, node: NodeId) -> f32 {
     off
 }
 
-/// The three Haar details of `node`'s split, from its children's heights in `z`.
-pub fn split_details(shape: &TreeShape, z: &[i32], node: NodeId) -> [i32; 3] {
-    let mut quad = [0i32; 4];
-    let mut present = [false; 4];
-    for (k, c) in shape.children(node) {
-        quad[k] = z[shape.index(c) as usize];
-        present[k] = true;
-    }
-    let p = Presence {
-        east: present[1],
-        south: present[2],
-    };
-    haar::forward(quad, p).1
-}
-
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+    use crate::store::layout::{QuadLayout, rec_code, rec_z};
+
+    /// Collects each level's records in order.
+    struct Levels(Vec<Vec<u32>>);
+
+    impl RecordSink for Levels {
+        fn records(&mut self, level: u8, records: &[u32]) -> Result<(), StoreError> {
+            self.0[level as usize].extend_from_slice(records);
+            Ok(())
+        }
+    }
+
+    /// The node records of `heights`' tree in the store's layout, the rows pushed `band` at a
+    /// time.
+    pub(crate) fn records(geom: &TerrainGeometry, heights: &[f32], band: usize) -> Vec<u32> {
+        let shape = &geom.shape;
+        let mut sink = Levels(vec![Vec::new(); shape.depth() as usize + 1]);
+        let mut b = TreeBuilder::new(geom);
+        for rows in heights.chunks(band * shape.width() as usize) {
+            b.push_rows(rows, &mut sink).unwrap();
+        }
+        b.finish().unwrap();
+        let lay = QuadLayout::new(shape);
+        let out: Vec<u32> = sink.0.concat();
+        assert_eq!(out.len() as u64, lay.len());
+        for (l, recs) in sink.0.iter().enumerate() {
+            assert_eq!(
+                lay.level_start(l as u8),
+                sink.0[..l].iter().map(|v| v.len() as u64).sum::<u64>()
+            );
+            assert!(!recs.is_empty());
+        }
+        out
+    }
 
     fn ramp(w: u32, h: u32) -> Vec<f32> {
         (0..w * h)
@@ -237,28 +372,29 @@ mod tests {
         for (w, h) in [(17, 9), (32, 32), (5, 40)] {
             let geom = TerrainGeometry::new(w, h, 1.0, 1.0, 0.25).unwrap();
             let shape = &geom.shape;
-            let heights = ramp(w, h);
-            let t = build_arrays(&geom, &heights, |_| {});
-            let inner = shape.level_offset(shape.depth());
-            for i in 0..inner {
+            let recs = records(&geom, &ramp(w, h), 4);
+            let lay = QuadLayout::new(shape);
+            let z = |n: NodeId| rec_z(recs[lay.slot(n)]);
+            let e = |n: NodeId| rec_code(recs[lay.slot(n)]);
+            for i in 0..shape.level_offset(shape.depth()) {
                 let node = shape.node(i).unwrap();
-                let e = error_value(t.err[i as usize]);
-                let z = t.z[i as usize];
+                let err = error_value(e(node));
                 let (c0, r0, c1, r1) = shape.block(node);
                 for r in r0..=r1 {
                     for c in c0..=c1 {
-                        let leaf = t.z[shape.index(shape.leaf(c, r)) as usize];
-                        assert!(((leaf - z) as f32 * 0.25).abs() <= e, "{node:?}");
+                        let leaf = z(shape.leaf(c, r));
+                        assert!(((leaf - z(node)) as f32 * 0.25).abs() <= err, "{node:?}");
                     }
                 }
                 for (_, c) in shape.children(node) {
-                    let ci = shape.index(c);
-                    if ci < inner {
-                        assert!(t.err[ci as usize] <= t.err[i as usize]);
+                    if c.level < shape.depth() {
+                        assert!(e(c) <= e(node));
                         // The child's box lies inside the parent's.
-                        let ce = error_value(t.err[ci as usize]);
-                        let dz = (t.z[ci as usize] - z) as f32 * 0.25;
-                        assert!(dz.abs() + ce <= e, "{c:?} box escapes {node:?}");
+                        let dz = (z(c) - z(node)) as f32 * 0.25;
+                        assert!(
+                            dz.abs() + error_value(e(c)) <= err,
+                            "{c:?} escapes {node:?}"
+                        );
                     }
                 }
             }
@@ -269,14 +405,64 @@ mod tests {
     fn details_rebuild_children_exactly() {
         let geom = TerrainGeometry::new(13, 6, 1.0, 1.0, 0.1).unwrap();
         let shape = &geom.shape;
-        let t = build_arrays(&geom, &ramp(13, 6), |_| {});
+        let recs = records(&geom, &ramp(13, 6), 1);
+        let lay = QuadLayout::new(shape);
+        let z = |n: NodeId| rec_z(recs[lay.slot(n)]);
         for i in 0..shape.level_offset(shape.depth()) {
             let node = shape.node(i).unwrap();
-            let d = split_details(shape, &t.z, node);
-            let quad = haar::inverse(t.z[i as usize], d);
+            let mut quad = [0i32; 4];
+            let mut present = [false; 4];
             for (k, c) in shape.children(node) {
-                assert_eq!(quad[k], t.z[shape.index(c) as usize]);
+                quad[k] = z(c);
+                present[k] = true;
+            }
+            let p = Presence {
+                east: present[1],
+                south: present[2],
+            };
+            let (parent, d) = haar::forward(quad, p);
+            assert_eq!(parent, z(node));
+            let back = haar::inverse(parent, d);
+            for (k, c) in shape.children(node) {
+                assert_eq!(back[k], z(c), "{c:?}");
             }
         }
+    }
+
+    #[test]
+    fn the_records_do_not_depend_on_the_band_or_the_threads() {
+        for (w, h) in [(2, 2), (33, 17), (9, 64)] {
+            let geom = TerrainGeometry::new(w, h, 2.0, 3.0, 0.5).unwrap();
+            let heights = ramp(w, h);
+            let one = records(&geom, &heights, 1);
+            for band in [2, 3, 7, h as usize] {
+                assert_eq!(
+                    records(&geom, &heights, band),
+                    one,
+                    "{w} x {h}, band {band}"
+                );
+            }
+            let single = rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .unwrap();
+            assert_eq!(single.install(|| records(&geom, &heights, 5)), one);
+        }
+    }
+
+    #[test]
+    fn rows_past_the_grid_and_missing_rows_are_errors() {
+        let geom = TerrainGeometry::new(4, 3, 1.0, 1.0, 1.0).unwrap();
+        let mut sink = Levels(vec![Vec::new(); geom.shape.depth() as usize + 1]);
+        let mut b = TreeBuilder::new(&geom);
+        assert!(b.push_rows(&[0.0; 5], &mut sink).is_err());
+        b.push_rows(&[0.0; 8], &mut sink).unwrap();
+        assert!(b.push_rows(&[0.0; 8], &mut sink).is_err());
+        assert!(
+            b.finish()
+                .unwrap_err()
+                .to_string()
+                .contains("2 of the grid's 3 rows")
+        );
     }
 }

@@ -196,6 +196,31 @@ impl<W: Write + std::io::Seek> SectionWriter<W> {
         Ok(())
     }
 
+    /// Where the next section starts.
+    pub fn position(&self) -> u64 {
+        self.pos
+    }
+
+    /// Takes the next section as `len` bytes already written in place at [`Self::position`]
+    /// (by positioned writes to the same file) with checksum `crc`, and moves past it.
+    pub fn section_written(&mut self, len: u64, crc: &crc32fast::Hasher) -> std::io::Result<()> {
+        use std::io::SeekFrom;
+        let Some(slot) = self.header.sections.get_mut(self.next) else {
+            return Err(std::io::Error::other(format!(
+                "a store has {SECTION_COUNT} sections, not more"
+            )));
+        };
+        *slot = (self.pos, len);
+        self.crc.combine(crc);
+        self.pos += len;
+        let pad = (8 - self.pos % 8) % 8;
+        self.out.seek(SeekFrom::Start(self.pos))?;
+        self.out.write_all(&[0u8; 8][..pad as usize])?;
+        self.pos += pad;
+        self.next += 1;
+        Ok(())
+    }
+
     /// The writer, e.g. to flush and sync what is written so far.
     pub fn get_mut(&mut self) -> &mut W {
         &mut self.out

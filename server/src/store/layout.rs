@@ -54,6 +54,16 @@ impl QuadLayout {
         self.len == 0
     }
 
+    /// Number of levels.
+    pub fn levels(&self) -> usize {
+        self.base.len()
+    }
+
+    /// The first slot of `level`'s records.
+    pub fn level_start(&self, level: u8) -> u64 {
+        self.base[level as usize]
+    }
+
     /// The slot of `node`.
     #[inline]
     pub fn slot(&self, node: NodeId) -> usize {
@@ -71,6 +81,14 @@ impl QuadLayout {
         let l = node.level as usize;
         (self.base[l + 1] + 4 * (node.y as u64 * self.width[l] as u64 + node.x as u64)) as usize
     }
+}
+
+/// A height in metres as a whole number of quanta (`inv` is one over the quantum), rounded
+/// half away from zero without a libm call: the store's heights, in the tree and the tiles.
+#[inline]
+pub fn quantise(h: f32, inv: f32) -> i32 {
+    let v = h * inv;
+    (v + 0.5f32.copysign(v)) as i32
 }
 
 /// A record's height in z quanta.

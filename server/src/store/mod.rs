@@ -16,6 +16,7 @@ pub mod format;
 pub mod layout;
 mod mmap;
 pub mod private;
+pub mod record_file;
 pub mod tiles;
 pub mod tmp_build;
 
@@ -26,7 +27,7 @@ use memmap2::Mmap;
 use relief_proto::terrain::TerrainGeometry;
 use relief_proto::tile::body::MeshKind;
 use relief_proto::tile::{TileSetInfo, TileShape};
-use relief_proto::tree::{NodeId, TreeShape};
+use relief_proto::tree::NodeId;
 use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -158,8 +159,8 @@ pub struct StoreInput<'a> {
     pub z_quantum: f64,
     /// Row-major heights in metres, voids filled.
     pub heights: &'a [f32],
-    /// Row-major void flags (true = no data in the source).
-    pub voids: &'a [bool],
+    /// Which samples had no data in the source.
+    pub voids: &'a crate::dem::VoidMask,
     /// Cells per side of the tile pyramid's tiles.
     pub tile_size: u32,
     /// Descriptive metadata.
@@ -173,6 +174,10 @@ pub const DEFAULT_TILE_SIZE: u32 = 64;
 /// the two took of the time in `bench build` on synthetic:16385 (1.7 s and 9.4 s on two
 /// threads), so that a progress bar's rate and time left hold through both.
 pub const TREE_SHARE: f64 = 0.15;
+
+/// Leaf samples the tree takes at a time (a band of whole rows, 16 to 1024 of them): the
+/// tree's memory is a few bands, whatever the grid's height.
+const TREE_BAND_SAMPLES: usize = 1 << 20;
 
 /// Builds the tree and the tile pyramid for `input` and writes them to `path` (through a
 /// temporary file and a rename, so that a mapped store is never overwritten in place).
@@ -198,14 +203,14 @@ pub fn write_store(
             input.meta.tile_mesh
         ))
     })?;
-    let voids: Vec<u8> = {
-        use rayon::prelude::*;
-        input
-            .voids
-            .par_chunks(8)
-            .map(|bits| (bits.iter().enumerate()).fold(0u8, |b, (i, &v)| b | u8::from(v) << i))
-            .collect()
-    };
+    if input.voids.len() != input.heights.len() {
+        return Err(StoreError::Input(format!(
+            "{} void flags for {} heights",
+            input.voids.len(),
+            input.heights.len()
+        )));
+    }
+    let voids = input.voids.to_le_bytes();
     let meta = serde_json::to_vec(&input.meta).map_err(|e| StoreError::Corrupt(e.to_string()))?;
     let header = Header {
         width: input.width,
@@ -228,21 +233,33 @@ pub fn write_store(
         source,
     };
     let file = File::create(&tmp.0).map_err(tmp_io)?;
+    let mut w = format::SectionWriter::new(BufWriter::with_capacity(1 << 20, file), header)
+        .map_err(tmp_io)?;
     let t0 = std::time::Instant::now();
-    let arrays = build::build_arrays(&geom, input.heights, |f| progress(f * TREE_SHARE));
-    // The node records now, and the tree's arrays dropped before the tile pyramid is built:
-    // the two never take memory at once.
-    let records = node_records(&geom.shape, &arrays)?;
-    drop(arrays);
+    // The tree streams its records into the file, the rows a band at a time.
+    let layout = QuadLayout::new(&geom.shape);
+    let nodes_crc = {
+        let tmp_name = tmp.0.display().to_string();
+        let at = w.position();
+        let mut sink = record_file::RecordFile::new(w.get_mut().get_ref(), &tmp_name, at, &layout);
+        let mut tree = build::TreeBuilder::new(&geom);
+        let width = input.width as usize;
+        let band = (TREE_BAND_SAMPLES / width).clamp(16, 1024) * width;
+        for rows in input.heights.chunks(band) {
+            tree.push_rows(rows, &mut sink)?;
+            progress(TREE_SHARE * f64::from(tree.rows_in()) / f64::from(input.height));
+        }
+        tree.finish()?;
+        sink.finish()?
+    };
+    w.section_written(4 * layout.len(), &nodes_crc)
+        .map_err(tmp_io)?;
     let build_s = t0.elapsed().as_secs_f64();
-    // The first sections (the node records are most of a store) are written, and synced, on a
-    // thread of their own while the tile pyramid is built: writing is the kernel's copying and
-    // the disk's time, which would otherwise follow the pyramid on one core.
+    // The small sections are written, and everything so far synced, on a thread of their own
+    // while the tile pyramid is built: syncing is the disk's time, which would otherwise follow
+    // the pyramid.
     let (pyramid, tiles_s, first) = std::thread::scope(|scope| {
-        let writer = scope.spawn(|| -> std::io::Result<_> {
-            let mut w =
-                format::SectionWriter::new(BufWriter::with_capacity(1 << 20, file), header)?;
-            w.section(bytemuck::cast_slice(&records))?;
+        let writer = scope.spawn(move || -> std::io::Result<_> {
             w.section(&voids)?;
             w.section(&meta)?;
             w.get_mut().flush()?;
@@ -270,53 +287,6 @@ pub fn write_store(
     std::fs::rename(&tmp.0, path).map_err(io)?;
     std::mem::forget(tmp);
     Ok((size, build_s, tiles_s))
-}
-
-/// The tree's arrays as node records in the store's layout ([`layout`]), each level's quads a
-/// row of parents at a time on every core (a row of parents' quads is one run of slots).
-fn node_records(shape: &TreeShape, arrays: &build::TreeArrays) -> Result<Vec<u32>, StoreError> {
-    use rayon::prelude::*;
-    let lay = QuadLayout::new(shape);
-    let mut out = vec![0u32; lay.len() as usize];
-    let record = |i: usize| -> Result<u32, i32> {
-        let z = arrays.z[i];
-        if z.abs() > layout::Z_LIMIT {
-            return Err(z);
-        }
-        Ok(layout::record(z, arrays.err.get(i).copied().unwrap_or(0)))
-    };
-    let too_high = |z: i32| {
-        StoreError::Corrupt(format!(
-            "a height of {z} z quanta does not fit the store's 24-bit heights; \
-             build with a larger --z-quantum"
-        ))
-    };
-    let (root, mut rest) = out.split_at_mut(1);
-    root[0] = record(0).map_err(too_high)?;
-    for level in 1..=shape.depth() {
-        let (pw, ph) = shape.level_dims(level - 1);
-        let (w, h) = shape.level_dims(level);
-        let (quads, tail) = rest.split_at_mut(4 * pw as usize * ph as usize);
-        rest = tail;
-        let first = shape.level_offset(level) as usize;
-        quads
-            .par_chunks_mut(4 * pw as usize)
-            .enumerate()
-            .try_for_each(|(py, run)| {
-                for dy in 0..2 {
-                    let y = 2 * py + dy;
-                    if y >= h as usize {
-                        continue;
-                    }
-                    for x in 0..w as usize {
-                        run[4 * (x >> 1) + (x & 1) + 2 * dy] = record(first + y * w as usize + x)?;
-                    }
-                }
-                Ok(())
-            })
-            .map_err(too_high)?;
-    }
-    Ok(out)
 }
 
 fn geometry(w: u32, h: u32, dx: f64, dy: f64, q: f64) -> Result<TerrainGeometry, StoreError> {

@@ -22,6 +22,7 @@
 //!
 //! Voids need nothing here: they were filled smoothly before the build, as for the vertex tree.
 
+use super::layout::quantise;
 use crate::lod::tile::mesh::HeightGrid;
 use crate::lod::tile::mesh::curtain::{
     Polyline, SideCurtain, across, fan, side_curtain, side_polyline,
@@ -65,6 +66,9 @@ pub struct TilePyramid {
     pub data: Vec<u8>,
 }
 
+/// A tile's own error (metres, before saturation), patch blob and patch triangles.
+type Part = (f32, Vec<u8>, u32);
+
 /// Builds the pyramid over `heights` (row-major metres, voids filled) quantised by `quantum`,
 /// with meshes of `kind` ([`pyramid`]). `progress` receives the fraction done.
 pub fn build_pyramid(
@@ -77,27 +81,24 @@ pub fn build_pyramid(
     let (w, h) = (shape.width(), shape.height());
     use rayon::prelude::*;
     let inv = 1.0 / quantum;
-    let zq: Vec<i32> = heights
-        .par_iter()
-        .map(|&h| {
-            let v = h * inv;
-            (v + 0.5f32.copysign(v)) as i32
-        })
-        .collect();
-    // The heights in metres again, as a grid, only for `tin`: the other kinds take them from
-    // `zq` sample by sample (the same `f32`).
+    // The heights in metres again, as a grid, only for `tin`: the other kinds quantise each
+    // sample as they read it ([`Quantised::at`]; the same `f32`).
     let zf: Vec<f32> = match kind {
-        MeshKind::Tin => zq.par_iter().map(|&v| v as f32 * quantum).collect(),
+        MeshKind::Tin => heights
+            .par_iter()
+            .map(|&h| quantise(h, inv) as f32 * quantum)
+            .collect(),
         MeshKind::Grid | MeshKind::Rqt => Vec::new(),
     };
     let Some(orig) = HeightGrid::new(w as usize, h as usize, heights) else {
         unreachable!("a tile shape has at least 2 x 2 samples, one height each");
     };
-    let quantised = Quantised {
-        zq: &zq,
+    let quantised = Quantised::new(
+        heights,
+        w,
         quantum,
-        metres: HeightGrid::new(w as usize, h as usize, &zf),
-    };
+        HeightGrid::new(w as usize, h as usize, &zf),
+    );
     let n = shape.tile_count() as usize;
     let tile = |i: usize| shape.tile(i as u32).unwrap_or(TileId::ROOT);
     // Every tile's grid error and bounds first: the grid's own errors, and the adaptive kinds'
@@ -109,7 +110,7 @@ pub fn build_pyramid(
         n,
         |i| {
             let span = shape.span(tile(i));
-            let z = span.map_vertices(|c, r| zq[(r * w + c) as usize] as f32 * quantum);
+            let z = span.map_vertices(|c, r| quantised.at(c, r) as f32 * quantum);
             let (err, lo, hi) = grid_error_bounds(&span, &z, &orig);
             (err, ((lo * inv).floor() as i32, (hi * inv).ceil() as i32))
         },
@@ -117,16 +118,38 @@ pub fn build_pyramid(
     );
     let grid_err: Vec<f32> = errors_bounds.iter().map(|e| e.0).collect();
     let tol = Tolerances::from_grid_errors(shape, &grid_err);
-    // Every tile's mesh first: an `rqt` tile's curtains depend on its neighbours' borders.
-    let meshes: Vec<PyramidMesh> = par_map(
+    // A grid tile's error, patch blob and patch triangles, from its lattice heights `z`: also
+    // in an `rqt` store (one the grid's border clips), paper 001's patches, which close its
+    // cracks against `rqt` tiles too, since their sides that can meet it keep every lattice
+    // vertex ([`crate::lod::tile::mesh::pyramid`]).
+    let grid_part = |i: usize, z: &[i32]| -> Part {
+        let t = tile(i);
+        let sample = |c: u32, r: u32| quantised.at(c, r);
+        let patches = if kind == MeshKind::Rqt {
+            grid_patches_in_rqt(shape, t, z, sample)
+        } else {
+            find_patches(shape, t, z, sample)
+        };
+        let pblob = encode_patches(shape, t, z, &patches);
+        (grid_err[i], pblob, patches.triangle_count() as u32)
+    };
+    // Every tile's mesh first: an `rqt` tile's curtains depend on its neighbours' borders. A
+    // `grid` pyramid's tiles depend on nothing but themselves, so each one's part is made with
+    // its mesh and its heights let go: the pyramid never holds every tile's heights at once.
+    let made: Vec<(PyramidMesh, Option<Part>)> = par_map(
         n,
-        |i| mesh_tile(kind, shape, tile(i), &quantised, &tol),
-        |f| {
+        |i| {
+            let mut m = mesh_tile(kind, shape, tile(i), &quantised, &tol);
             if kind != MeshKind::Grid {
-                progress((1.0 + f) / steps)
+                return (m, None);
             }
+            let part = grid_part(i, &m.z);
+            m.z = Vec::new();
+            (m, Some(part))
         },
+        |f| progress((1.0 + f) / steps),
     );
+    let (meshes, made): (Vec<PyramidMesh>, Vec<_>) = made.into_iter().unzip();
     let side = |t: TileId, e: Edge| -> Polyline {
         let m = &meshes[shape.index(t) as usize];
         let span = shape.span(t);
@@ -142,59 +165,49 @@ pub fn build_pyramid(
         })
     };
     // Each tile's own error, patch blob and patch triangles.
-    let parts: Vec<(f32, Vec<u8>, u32)> = par_map(
-        n,
-        |i| {
-            let t = tile(i);
-            let m = &meshes[i];
-            match &m.irregular {
-                None => {
-                    // A grid tile, also in an `rqt` store (one the grid's border clips):
-                    // paper 001's patches, which close its cracks against `rqt` tiles too,
-                    // since their sides that can meet it keep every lattice vertex
-                    // ([`crate::lod::tile::mesh::pyramid`]).
-                    let sample = |c: u32, r: u32| zq[(r * w + c) as usize];
-                    let patches = if kind == MeshKind::Rqt {
-                        grid_patches_in_rqt(shape, t, &m.z, sample)
-                    } else {
-                        find_patches(shape, t, &m.z, sample)
-                    };
-                    let pblob = encode_patches(shape, t, &m.z, &patches);
-                    (grid_err[i], pblob, patches.triangle_count() as u32)
+    let parts: Vec<Part> = if kind == MeshKind::Grid {
+        made.into_iter().flatten().collect()
+    } else {
+        par_map(
+            n,
+            |i| {
+                let t = tile(i);
+                let m = &meshes[i];
+                let Some(irr) = &m.irregular else {
+                    return grid_part(i, &m.z);
+                };
+                let err = irregular_error(shape, t, irr, &m.z, quantum, &orig);
+                if kind != MeshKind::Rqt {
+                    return (err, Vec::new(), 0);
                 }
-                Some(irr) => {
-                    let err = irregular_error(shape, t, irr, &m.z, quantum, &orig);
-                    if kind != MeshKind::Rqt {
-                        return (err, Vec::new(), 0);
-                    }
-                    // Curtains on every side with a neighbour.
-                    let sides: Vec<(Polyline, SideCurtain)> = EDGES
-                        .into_iter()
-                        .filter(|&e| shape.neighbour(t, e).is_some())
-                        .map(|e| {
-                            let own = side(t, e);
-                            let others: Vec<Polyline> = across(shape, t, e)
-                                .into_iter()
-                                .map(|(n, b)| side(n, b))
-                                .collect();
-                            let c = side_curtain(&own, &others);
-                            (own, c)
-                        })
-                        .collect();
-                    let curtain_tris: usize = sides
-                        .iter()
-                        .flat_map(|(own, segs)| {
-                            segs.iter()
-                                .enumerate()
-                                .filter_map(move |(s, b)| b.as_ref().map(|b| fan(own, s, b).len()))
-                        })
-                        .sum();
-                    (err, encode_curtains(&sides), curtain_tris as u32)
-                }
-            }
-        },
-        |f| progress((steps - 1.0 + f) / steps),
-    );
+                // Curtains on every side with a neighbour.
+                let sides: Vec<(Polyline, SideCurtain)> = EDGES
+                    .into_iter()
+                    .filter(|&e| shape.neighbour(t, e).is_some())
+                    .map(|e| {
+                        let own = side(t, e);
+                        let others: Vec<Polyline> = across(shape, t, e)
+                            .into_iter()
+                            .map(|(n, b)| side(n, b))
+                            .collect();
+                        let c = side_curtain(&own, &others);
+                        (own, c)
+                    })
+                    .collect();
+                let curtain_tris: usize = sides
+                    .iter()
+                    .flat_map(|(own, segs)| {
+                        segs.iter()
+                            .enumerate()
+                            .filter_map(move |(s, b)| b.as_ref().map(|b| fan(own, s, b).len()))
+                    })
+                    .sum();
+                (err, encode_curtains(&sides), curtain_tris as u32)
+            },
+            |f| progress((steps - 1.0 + f) / steps),
+        )
+    };
+    debug_assert_eq!(parts.len(), n);
     // The records, finest level first, so that children's errors are known when parents
     // saturate; the blobs back to back in that order.
     let mut records = vec![TileRecord::default(); n];

@@ -28,7 +28,7 @@ pub(crate) fn store(dir: &std::path::Path, w: u32, h: u32, seed: u64) -> Store {
             (x * 0.3).sin() * 30.0 + (y * 0.17).cos() * 50.0 + rnd() * 8.0
         })
         .collect();
-    let voids = vec![false; heights.len()];
+    let voids = crate::dem::VoidMask::new(heights.len());
     let path = dir.join(format!("{w}x{h}-{seed}.relief"));
     let input = StoreInput {
         width: w,

@@ -94,16 +94,47 @@ pub struct PyramidMesh {
     pub blob: Vec<u8>,
 }
 
-/// The whole grid's quantised heights: in z quanta, and in metres for `tin` meshes, which
-/// triangulate a height grid (the other kinds take a sample's metres as `zq * quantum`, the
-/// same `f32`, so that a build of them holds no second copy of the grid).
+/// The whole grid's heights as the store keeps them, in z quanta: each sample's metres
+/// quantised when it is read ([`crate::store::layout::quantise`]), so that a build holds no
+/// second copy of the grid; and in metres for `tin` meshes, which triangulate a height grid
+/// (the other kinds take a sample's metres as its quanta times the quantum, the same `f32`).
 pub struct Quantised<'a> {
-    /// Heights in z quanta, row-major.
-    pub zq: &'a [i32],
+    /// Heights in metres, row-major, voids filled.
+    heights: &'a [f32],
+    /// Samples a row.
+    width: usize,
     /// Metres a quantum.
     pub quantum: f32,
-    /// `zq * quantum` as a grid, where `tin` meshes are made.
+    /// One over the quantum.
+    inv: f32,
+    /// The quantised heights in metres as a grid, where `tin` meshes are made.
     pub metres: Option<HeightGrid<'a>>,
+}
+
+impl<'a> Quantised<'a> {
+    /// `heights` (row-major, `width` a row) at `quantum` metres a quantum, with the grid in
+    /// metres for `tin` meshes.
+    pub fn new(
+        heights: &'a [f32],
+        width: u32,
+        quantum: f32,
+        metres: Option<HeightGrid<'a>>,
+    ) -> Quantised<'a> {
+        Quantised {
+            heights,
+            width: width as usize,
+            quantum,
+            inv: 1.0 / quantum,
+            metres,
+        }
+    }
+
+    /// Sample `(c, r)` in z quanta.
+    #[inline]
+    pub fn at(&self, c: u32, r: u32) -> i32 {
+        let h = self.heights[r as usize * self.width + c as usize];
+        crate::store::layout::quantise(h, self.inv)
+    }
 }
 
 /// Tile `t`'s mesh of `kind` at its tolerance in `tol`, over the grid's quantised heights `q`.
@@ -118,9 +149,7 @@ pub fn mesh_tile(
     tol: &Tolerances,
 ) -> PyramidMesh {
     let span = shape.span(t);
-    let w = shape.width();
-    let zq = q.zq;
-    let at = |c: u32, r: u32| zq[(r * w + c) as usize];
+    let at = |c: u32, r: u32| q.at(c, r);
     let grid = || {
         let z = span.map_vertices(at);
         PyramidMesh {
@@ -242,8 +271,10 @@ mod tests {
         let (w, h) = (129u32, 100u32);
         let heights = rough(w, h);
         let q = 0.1f32;
-        let zq: Vec<i32> = heights.iter().map(|&v| (v / q).round() as i32).collect();
-        let zf: Vec<f32> = zq.iter().map(|&v| v as f32 * q).collect();
+        let zf: Vec<f32> = heights
+            .iter()
+            .map(|&v| crate::store::layout::quantise(v, 1.0 / q) as f32 * q)
+            .collect();
         let shape = TileShape::new(w, h, 16).unwrap();
         let orig = HeightGrid::new(w as usize, h as usize, &heights).unwrap();
         let quantised = HeightGrid::new(w as usize, h as usize, &zf).unwrap();
@@ -257,11 +288,7 @@ mod tests {
             for i in 0..shape.tile_count() {
                 let t = shape.tile(i).unwrap();
                 let span = shape.span(t);
-                let qg = Quantised {
-                    zq: &zq,
-                    quantum: q,
-                    metres: Some(quantised),
-                };
+                let qg = Quantised::new(&heights, w, q, Some(quantised));
                 let m = mesh_tile(kind, &shape, t, &qg, &tol);
                 let Some(mesh) = &m.irregular else {
                     // Only a clipped tile falls back to a grid, and only for rqt.
