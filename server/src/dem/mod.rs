@@ -56,13 +56,18 @@ use crate::geo::{GeoTransform, Georef};
 use std::io::{BufRead, BufReader, Seek, SeekFrom};
 use std::path::Path;
 
-/// Peak resident bytes a sample of a build, which holds the grid's heights in memory (the
-/// tree streams its records to the file, and a `grid` pyramid keeps only its blobs). Measured
-/// by `relief-server bench build`: 6.4 for a `grid` store of synthetic:8193, 6.8 for one of an
-/// 8193 x 8193 float32 COG; mosaics and void filling hold more while reading, hence the margin.
-/// `rqt` and `tin` pyramids hold every tile's mesh until the curtains are made: 43 and 48 bytes
-/// a sample on synthetic:4097, over this limit (docs/building.md).
-pub const BUILD_BYTES_PER_SAMPLE: u64 = 32;
+/// Peak resident bytes a sample of a build with `grid` tiles (the default), which holds the
+/// grid's heights in memory while the tree streams its records to the file and the pyramid keeps
+/// only its blobs. Measured by `relief-server bench build`: 6.1 on synthetic:16385, 6.8 on an
+/// 8193 x 8193 float32 COG. Reading holds more for a while: void filling's pyramid (a quarter
+/// of the grid, 2 bytes a sample) and a mosaic's pieces beside the whole, hence the margin.
+pub const BUILD_BYTES_PER_SAMPLE: u64 = 12;
+
+/// The same for `rqt` and `tin` tiles, whose pyramids hold every tile's mesh until the crack
+/// curtains are made: 43 and 48 measured on synthetic:4097, with a margin. A build of these
+/// over the memory it would need is warned about, not refused ([`BUILD_BYTES_PER_SAMPLE`]
+/// sets the default limit).
+pub const ADAPTIVE_BUILD_BYTES_PER_SAMPLE: u64 = 64;
 
 /// Samples accepted by default: as many as a build fits in the memory this process may use
 /// ([`crate::sysmem::usable_memory`], at [`BUILD_BYTES_PER_SAMPLE`]), or 16385 x 16385 where

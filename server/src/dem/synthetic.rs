@@ -1,4 +1,4 @@
-//! `synthetic:SIZE[:SEED]`: a deterministic fractal terrain of SIZE x SIZE samples (2..=16385,
+//! `synthetic:SIZE[:SEED]`: a deterministic fractal terrain of SIZE x SIZE samples (2..=32768,
 //! default seed 1), 10 m apart, with mountain ranges, valleys and plains, for tests and benchmarks
 //! at any size.
 //!
@@ -30,8 +30,8 @@ use std::ops::Range;
 
 /// Ground spacing of synthetic terrains, metres.
 pub const SPACING_M: f64 = 10.0;
-/// Largest size accepted (2^14 + 1).
-pub const MAX_SIZE: u32 = 16385;
+/// Largest size accepted: the vertex tree's largest grid ([`relief_proto::tree::MAX_DEPTH`]).
+pub const MAX_SIZE: u32 = 1 << relief_proto::tree::MAX_DEPTH;
 /// Wavelength of the largest mountains on big grids, samples.
 const MAX_WAVELENGTH: f32 = 1024.0;
 /// Wavelength of the largest mountains on tiny grids, samples.
@@ -395,7 +395,7 @@ mod tests {
             "synthetic:x",
             "synthetic:5:y",
             "synthetic:5:1:2",
-            "synthetic:20000",
+            "synthetic:32769",
         ] {
             let e = crate::dem::load(spec, &opts).unwrap_err();
             assert!(matches!(e, DemError::BadSpec { .. }), "{spec}: {e}");

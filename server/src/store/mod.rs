@@ -171,9 +171,10 @@ pub struct StoreInput<'a> {
 pub const DEFAULT_TILE_SIZE: u32 = 64;
 
 /// The share of a build's progress the vertex tree takes (the tile pyramid takes the rest), as
-/// the two took of the time in `bench build` on synthetic:16385 (1.7 s and 9.4 s on two
-/// threads), so that a progress bar's rate and time left hold through both.
-pub const TREE_SHARE: f64 = 0.15;
+/// the two took of the time in `bench build` on synthetic:16385 (3.8 s, writing its records
+/// included, and 13.5 s on one thread), so that a progress bar's rate and time left hold
+/// through both.
+pub const TREE_SHARE: f64 = 0.2;
 
 /// Leaf samples the tree takes at a time (a band of whole rows, 16 to 1024 of them): the
 /// tree's memory is a few bands, whatever the grid's height.
