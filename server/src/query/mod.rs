@@ -133,20 +133,35 @@ impl Terrain {
         dy: f64,
         heights: &[f32],
     ) -> Result<Terrain, QueryError> {
+        if heights.len() != width as usize * height as usize {
+            return Err(QueryError::BadGrid("heights do not match the size"));
+        }
+        let w = (width as usize).max(1);
+        let z: Vec<f32> = heights.chunks_exact(w).rev().flatten().copied().collect();
+        Terrain::from_south_rows(width, height, dx, dy, z)
+    }
+
+    /// A terrain from `z`, row-major from the south (as [`Terrain`] keeps it). Builds the
+    /// pyramids.
+    fn from_south_rows(
+        width: u32,
+        height: u32,
+        dx: f64,
+        dy: f64,
+        z: Vec<f32>,
+    ) -> Result<Terrain, QueryError> {
         if width < 2 || height < 2 {
             return Err(QueryError::BadGrid("fewer than 2 x 2 samples"));
         }
         if !(dx.is_finite() && dy.is_finite() && dx > 0.0 && dy > 0.0) {
             return Err(QueryError::BadGrid("the spacing must be positive"));
         }
-        if heights.len() != width as usize * height as usize {
+        if z.len() != width as usize * height as usize {
             return Err(QueryError::BadGrid("heights do not match the size"));
         }
-        if heights.iter().any(|h| !h.is_finite()) {
+        if z.iter().any(|h| !h.is_finite()) {
             return Err(QueryError::BadGrid("a height is not finite"));
         }
-        let w = width as usize;
-        let z: Vec<f32> = heights.chunks_exact(w).rev().flatten().copied().collect();
         let pyramid = Pyramid::build(&z, width, height);
         let z_abs_max = f64::from(z.iter().fold(0f32, |m, h| m.max(h.abs())));
         Ok(Terrain {
@@ -177,14 +192,22 @@ impl Terrain {
 
     /// The terrain of a store: its heights as stored (within half a z quantum of the source).
     pub fn from_store(store: &crate::store::Store) -> Result<Terrain, QueryError> {
+        use rayon::prelude::*;
         let g = store.geometry();
-        Terrain::new(
-            g.shape.width(),
-            g.shape.height(),
-            f64::from(g.frame.dx),
-            f64::from(g.frame.dy),
-            &store.heights(),
-        )
+        let (w, h) = (g.shape.width(), g.shape.height());
+        let q = g.z_quantum;
+        // The rows from the south straight from the store's records, with no copy of the grid
+        // in the store's order between (on a large terrain, gigabytes at the server's start).
+        let mut z = vec![0f32; w as usize * h as usize];
+        z.par_chunks_mut(w as usize)
+            .enumerate()
+            .for_each(|(i, row)| {
+                let r = h - 1 - i as u32;
+                for (c, v) in row.iter_mut().enumerate() {
+                    *v = store.sample_z(c as u32, r) as f32 * q;
+                }
+            });
+        Terrain::from_south_rows(w, h, f64::from(g.frame.dx), f64::from(g.frame.dy), z)
     }
 
     /// Samples per row and rows.
