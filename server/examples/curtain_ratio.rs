@@ -20,11 +20,12 @@ fn main() -> anyhow::Result<()> {
     let shape = TileShape::new(dem.width, dem.height, tile)?;
     for kind in [MeshKind::Rqt, MeshKind::Grid] {
         let p = build_pyramid(&shape, &dem.heights, q, kind, |_| {});
+        let data = p.data();
         let tiles: Vec<TileData> = (0..shape.tile_count())
             .map(|i| {
                 let t = shape.tile(i).unwrap_or(TileId::ROOT);
                 let r = p.records[i as usize];
-                let blob = &p.data[r.offset as usize..][..r.mesh_len as usize];
+                let blob = &data[r.offset as usize..][..r.mesh_len as usize];
                 let span = shape.span(t);
                 let m = decode_mesh(&span, blob).expect("a built blob decodes");
                 TileData {

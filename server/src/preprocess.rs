@@ -188,14 +188,13 @@ fn build(
         },
     };
     let samples = u64::from(dem.width) * u64::from(dem.height);
-    if opts.tile_mesh != MeshKind::Grid {
-        let need = samples * crate::dem::ADAPTIVE_BUILD_BYTES_PER_SAMPLE;
+    if opts.tile_mesh == MeshKind::Tin {
+        let need = samples * crate::dem::TIN_BUILD_BYTES_PER_SAMPLE;
         if let Some(have) = crate::sysmem::usable_memory().filter(|&m| need > m) {
             tracing::warn!(
-                "{} tiles hold every tile's mesh while they are built: about {:.1} GiB for {samples} \
-                 samples, more than the {:.1} GiB this process may use; `grid` tiles need about a \
-                 fifth of that",
-                opts.tile_mesh.name(),
+                "tin tiles triangulate a second copy of the grid: about {:.1} GiB for {samples} \
+                 samples, more than the {:.1} GiB this process may use; `grid` and `rqt` tiles \
+                 need about half of that",
                 need as f64 / (1u64 << 30) as f64,
                 have as f64 / (1u64 << 30) as f64
             );

@@ -44,8 +44,7 @@ pub struct DemArgs {
     #[arg(long, value_name = "Z/X/Y")]
     pub tile: Option<TileId>,
     /// Refuse DEMs with more samples than this [default: what a build fits in this machine's
-    /// memory, or the cgroup's limit, at 12 bytes a sample; `rqt` and `tin` tiles need about
-    /// 64].
+    /// memory, or the cgroup's limit, at 12 bytes a sample; `tin` tiles need about 24].
     #[arg(long, default_value_t = super::default_max_samples(), hide_default_value = true)]
     pub max_samples: u64,
     /// Hide progress bars.

@@ -56,18 +56,19 @@ use crate::geo::{GeoTransform, Georef};
 use std::io::{BufRead, BufReader, Seek, SeekFrom};
 use std::path::Path;
 
-/// Peak resident bytes a sample of a build with `grid` tiles (the default), which holds the
-/// grid's heights in memory while the tree streams its records to the file and the pyramid keeps
-/// only its blobs. Measured by `relief-server bench build`: 6.1 on synthetic:16385, 6.8 on an
-/// 8193 x 8193 float32 COG. Reading holds more for a while: void filling's pyramid (a quarter
-/// of the grid, 2 bytes a sample) and a mosaic's pieces beside the whole, hence the margin.
+/// Peak resident bytes a sample of a build with `grid` or `rqt` tiles, which holds the grid's
+/// heights in memory while the tree streams its records to the file and the pyramid keeps only
+/// its blobs (and for `rqt`, each tile's sides). Measured by `relief-server bench build`: 6.1
+/// on synthetic:16385, 6.8 on an 8193 x 8193 float32 COG, 7.0 (`grid`) and 6.7 (`rqt`) on
+/// synthetic:4097. Reading holds more for a while: void filling's pyramid (a quarter of the
+/// grid, 2 bytes a sample) and a mosaic's pieces beside the whole, hence the margin.
 pub const BUILD_BYTES_PER_SAMPLE: u64 = 12;
 
-/// The same for `rqt` and `tin` tiles, whose pyramids hold every tile's mesh until the crack
-/// curtains are made: 43 and 48 measured on synthetic:4097, with a margin. A build of these
-/// over the memory it would need is warned about, not refused ([`BUILD_BYTES_PER_SAMPLE`]
-/// sets the default limit).
-pub const ADAPTIVE_BUILD_BYTES_PER_SAMPLE: u64 = 64;
+/// The same for `tin` tiles, which triangulate a second copy of the grid (in quantised metres)
+/// and whose blobs are larger: 16.1 measured on synthetic:4097, with a margin. A `tin` build
+/// over the memory it would need is warned about, not refused ([`BUILD_BYTES_PER_SAMPLE`] sets
+/// the default limit).
+pub const TIN_BUILD_BYTES_PER_SAMPLE: u64 = 24;
 
 /// Samples accepted by default: as many as a build fits in the memory this process may use
 /// ([`crate::sysmem::usable_memory`], at [`BUILD_BYTES_PER_SAMPLE`]), or 16385 x 16385 where

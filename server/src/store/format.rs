@@ -180,15 +180,26 @@ impl<W: Write + std::io::Seek> SectionWriter<W> {
 
     /// Appends the next section, padded to 8 bytes.
     pub fn section(&mut self, s: &[u8]) -> std::io::Result<()> {
+        self.section_parts(std::iter::once(s))
+    }
+
+    /// Appends the next section made of `parts` back to back, padded to 8 bytes.
+    pub fn section_parts<'p>(
+        &mut self,
+        parts: impl Iterator<Item = &'p [u8]> + Clone,
+    ) -> std::io::Result<()> {
         let Some(slot) = self.header.sections.get_mut(self.next) else {
             return Err(std::io::Error::other(format!(
                 "a store has {SECTION_COUNT} sections, not more"
             )));
         };
-        *slot = (self.pos, s.len() as u64);
-        self.out.write_all(s)?;
-        self.crc.update(s);
-        self.pos += s.len() as u64;
+        let len: u64 = parts.clone().map(|p| p.len() as u64).sum();
+        *slot = (self.pos, len);
+        for p in parts {
+            self.out.write_all(p)?;
+            self.crc.update(p);
+        }
+        self.pos += len;
         let pad = (8 - self.pos % 8) % 8;
         self.out.write_all(&[0u8; 8][..pad as usize])?;
         self.pos += pad;

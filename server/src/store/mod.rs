@@ -280,7 +280,7 @@ pub fn write_store(
     });
     let mut w = first.map_err(tmp_io)?;
     w.section(bytemuck::cast_slice(&pyramid.records))
-        .and_then(|()| w.section(&pyramid.data))
+        .and_then(|()| w.section_parts(pyramid.blobs.iter().map(Vec::as_slice)))
         .map_err(tmp_io)?;
     let (file, size) = w.finish().map_err(tmp_io)?;
     let file = file.into_inner().map_err(|e| tmp_io(e.into_error()))?;

@@ -62,12 +62,46 @@ pub struct TileRecord {
 pub struct TilePyramid {
     /// Records by dense index.
     pub records: Vec<TileRecord>,
-    /// Mesh and patch blobs, back to back.
-    pub data: Vec<u8>,
+    /// Mesh and patch blobs in the order of the `tile_data` section (each tile's mesh blob,
+    /// then its patch blob), where they go back to back.
+    pub blobs: Vec<Vec<u8>>,
+}
+
+impl TilePyramid {
+    /// The `tile_data` section's bytes, the blobs back to back (a copy: for tests).
+    pub fn data(&self) -> Vec<u8> {
+        self.blobs.concat()
+    }
 }
 
 /// A tile's own error (metres, before saturation), patch blob and patch triangles.
 type Part = (f32, Vec<u8>, u32);
+
+/// What the pyramid keeps of a tile once its mesh is made.
+struct Made {
+    /// The mesh blob.
+    blob: Vec<u8>,
+    /// The polylines of its four sides, in [`EDGES`] order (`rqt` pyramids only).
+    sides: Option<[Polyline; 4]>,
+    /// Its part, or for an `rqt` tile, whose curtains wait for its neighbours' sides, its
+    /// error.
+    part: Result<Part, f32>,
+}
+
+/// The polyline of tile `t`'s side `e` from its mesh `m`.
+fn side_of(shape: &TileShape, t: TileId, m: &PyramidMesh, e: Edge) -> Polyline {
+    let span = shape.span(t);
+    side_polyline(&span, e, m.z.len(), |v| {
+        let p = match &m.irregular {
+            None => {
+                let (c, r) = span.vertex_pos(v as u32);
+                [c, r]
+            }
+            Some(irr) => [span.cols.0 + irr.at[v][0], span.rows.0 + irr.at[v][1]],
+        };
+        (p, m.z[v])
+    })
+}
 
 /// Builds the pyramid over `heights` (row-major metres, voids filled) quantised by `quantum`,
 /// with meshes of `kind` ([`pyramid`]). `progress` receives the fraction done.
@@ -105,7 +139,7 @@ pub fn build_pyramid(
     // tolerances. Each step below is one tile at a time, independent of the others, on every
     // core; the results come back in tile order, so the store is the same bytes whatever the
     // number of threads.
-    let steps = if kind == MeshKind::Grid { 2.0 } else { 3.0 };
+    let steps = if kind == MeshKind::Rqt { 3.0 } else { 2.0 };
     let errors_bounds: Vec<(f32, (i32, i32))> = par_map(
         n,
         |i| {
@@ -133,54 +167,52 @@ pub fn build_pyramid(
         let pblob = encode_patches(shape, t, z, &patches);
         (grid_err[i], pblob, patches.triangle_count() as u32)
     };
-    // Every tile's mesh first: an `rqt` tile's curtains depend on its neighbours' borders. A
-    // `grid` pyramid's tiles depend on nothing but themselves, so each one's part is made with
-    // its mesh and its heights let go: the pyramid never holds every tile's heights at once.
-    let made: Vec<(PyramidMesh, Option<Part>)> = par_map(
+    // Every tile's mesh, and with it all that depends on the tile alone: its blob, its error
+    // and, but for an `rqt` tile's curtains, its patches. The mesh itself then goes: an `rqt`
+    // tile keeps only its four sides' polylines, which its neighbours' curtains need, so the
+    // pyramid never holds every tile's mesh at once.
+    let made: Vec<Made> = par_map(
         n,
         |i| {
-            let mut m = mesh_tile(kind, shape, tile(i), &quantised, &tol);
-            if kind != MeshKind::Grid {
-                return (m, None);
+            let t = tile(i);
+            let m = mesh_tile(kind, shape, t, &quantised, &tol);
+            let sides = (kind == MeshKind::Rqt).then(|| EDGES.map(|e| side_of(shape, t, &m, e)));
+            let part = match &m.irregular {
+                None => Ok(grid_part(i, &m.z)),
+                Some(irr) => {
+                    let err = irregular_error(shape, t, irr, &m.z, quantum, &orig);
+                    if kind == MeshKind::Rqt {
+                        Err(err)
+                    } else {
+                        Ok((err, Vec::new(), 0))
+                    }
+                }
+            };
+            Made {
+                blob: m.blob,
+                sides,
+                part,
             }
-            let part = grid_part(i, &m.z);
-            m.z = Vec::new();
-            (m, Some(part))
         },
         |f| progress((1.0 + f) / steps),
     );
-    let (meshes, made): (Vec<PyramidMesh>, Vec<_>) = made.into_iter().unzip();
-    let side = |t: TileId, e: Edge| -> Polyline {
-        let m = &meshes[shape.index(t) as usize];
-        let span = shape.span(t);
-        side_polyline(&span, e, m.z.len(), |v| {
-            let p = match &m.irregular {
-                None => {
-                    let (c, r) = span.vertex_pos(v as u32);
-                    [c, r]
-                }
-                Some(irr) => [span.cols.0 + irr.at[v][0], span.rows.0 + irr.at[v][1]],
-            };
-            (p, m.z[v])
-        })
+    let side = |t: TileId, e: Edge| -> &Polyline {
+        let sides = made[shape.index(t) as usize].sides.as_ref();
+        &sides.expect("an rqt pyramid keeps every tile's sides")[e as usize]
     };
-    // Each tile's own error, patch blob and patch triangles.
-    let parts: Vec<Part> = if kind == MeshKind::Grid {
-        made.into_iter().flatten().collect()
+    // Each tile's own error, patch blob and patch triangles: the `rqt` tiles' curtains now,
+    // on every side with a neighbour.
+    let mut curtains: Vec<Option<Part>> = if kind != MeshKind::Rqt {
+        Vec::new()
     } else {
         par_map(
             n,
             |i| {
-                let t = tile(i);
-                let m = &meshes[i];
-                let Some(irr) = &m.irregular else {
-                    return grid_part(i, &m.z);
+                let err = match &made[i].part {
+                    Ok(_) => return None,
+                    Err(err) => *err,
                 };
-                let err = irregular_error(shape, t, irr, &m.z, quantum, &orig);
-                if kind != MeshKind::Rqt {
-                    return (err, Vec::new(), 0);
-                }
-                // Curtains on every side with a neighbour.
+                let t = tile(i);
                 let sides: Vec<(Polyline, SideCurtain)> = EDGES
                     .into_iter()
                     .filter(|&e| shape.neighbour(t, e).is_some())
@@ -188,10 +220,10 @@ pub fn build_pyramid(
                         let own = side(t, e);
                         let others: Vec<Polyline> = across(shape, t, e)
                             .into_iter()
-                            .map(|(n, b)| side(n, b))
+                            .map(|(n, b)| side(n, b).clone())
                             .collect();
-                        let c = side_curtain(&own, &others);
-                        (own, c)
+                        let c = side_curtain(own, &others);
+                        (own.clone(), c)
                     })
                     .collect();
                 let curtain_tris: usize = sides
@@ -202,44 +234,50 @@ pub fn build_pyramid(
                             .filter_map(move |(s, b)| b.as_ref().map(|b| fan(own, s, b).len()))
                     })
                     .sum();
-                (err, encode_curtains(&sides), curtain_tris as u32)
+                Some((err, encode_curtains(&sides), curtain_tris as u32))
             },
             |f| progress((steps - 1.0 + f) / steps),
         )
     };
-    debug_assert_eq!(parts.len(), n);
     // The records, finest level first, so that children's errors are known when parents
-    // saturate; the blobs back to back in that order.
+    // saturate; the blobs moved, not copied, into that order.
+    let mut made = made;
     let mut records = vec![TileRecord::default(); n];
-    let mut data = Vec::new();
+    let mut blobs = Vec::with_capacity(2 * n);
+    let mut offset = 0u64;
     for level in (0..=shape.depth()).rev() {
         let (nx, ny) = shape.level_dims(level);
         for y in 0..ny {
             for x in 0..nx {
                 let t = TileId { level, x, y };
                 let i = shape.index(t) as usize;
-                let (own_err, pblob, patch_tris) = &parts[i];
-                let mut err = *own_err;
+                let (own_err, pblob, patch_tris) =
+                    match std::mem::replace(&mut made[i].part, Err(0.0)) {
+                        Ok(part) => part,
+                        Err(_) => curtains[i].take().unwrap_or_default(),
+                    };
+                let mut err = own_err;
                 for c in shape.children(t) {
                     err = err.max(records[shape.index(c) as usize].error);
                 }
-                let mesh = &meshes[i].blob;
+                let mesh = std::mem::take(&mut made[i].blob);
                 records[i] = TileRecord {
-                    offset: data.len() as u64,
+                    offset,
                     mesh_len: mesh.len() as u32,
                     patch_len: pblob.len() as u32,
                     error: err,
                     zmin: errors_bounds[i].1.0,
                     zmax: errors_bounds[i].1.1,
-                    patch_tris: *patch_tris,
+                    patch_tris,
                 };
-                data.extend_from_slice(mesh);
-                data.extend_from_slice(pblob);
+                offset += (mesh.len() + pblob.len()) as u64;
+                blobs.push(mesh);
+                blobs.push(pblob);
             }
         }
     }
     progress(1.0);
-    TilePyramid { records, data }
+    TilePyramid { records, blobs }
 }
 
 /// The grid mesh over `span` (vertex heights `z`) against the samples `orig` it covers: the
@@ -466,10 +504,11 @@ mod tests {
         for kind in [MeshKind::Grid, MeshKind::Rqt, MeshKind::Tin] {
             let q = 0.1;
             let p = build_pyramid(&shape, &heights, q, kind, |_| {});
+            let data = p.data();
             for i in 0..shape.tile_count() {
                 let t = shape.tile(i).unwrap();
                 let r = p.records[i as usize];
-                let blob = &p.data[r.offset as usize..][..r.mesh_len as usize];
+                let blob = &data[r.offset as usize..][..r.mesh_len as usize];
                 let span = shape.span(t);
                 let m = decode_mesh(&span, blob).unwrap();
                 let data = TileData {
@@ -519,7 +558,7 @@ mod tests {
         for i in 0..shape.tile_count() {
             let t = shape.tile(i).unwrap();
             let r = p.records[i as usize];
-            let data = &p.data[r.offset as usize..];
+            let data = &p.data()[r.offset as usize..];
             let (mesh, blob) = data.split_at(r.mesh_len as usize);
             let span = shape.span(t);
             let m = decode_mesh(&span, mesh).unwrap();

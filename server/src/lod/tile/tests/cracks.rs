@@ -123,11 +123,12 @@ fn sides(
     quantum: f32,
 ) -> Vec<[Side; 4]> {
     let n = shape.tile_count();
+    let data = pyramid.data();
     // One delta that adds every tile with its body, as a session sends it.
     let added = (0..n)
         .map(|i| {
             let r = pyramid.records[i as usize];
-            let (mesh, patches) = pyramid.data[r.offset as usize..].split_at(r.mesh_len as usize);
+            let (mesh, patches) = data[r.offset as usize..].split_at(r.mesh_len as usize);
             AddedTile {
                 tile: i,
                 body: Some(TileBlobs {
