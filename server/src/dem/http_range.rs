@@ -9,6 +9,9 @@
 //! - The first request, for block 0, learns the file's size from its `Content-Range`
 //!   (`bytes 0-N/TOTAL`); every answer's `Content-Range` must be the range asked for, of that
 //!   size.
+//! - The first answer's `ETag` (or, without one, its `Last-Modified`) names the file's version
+//!   ([`RangeReader::version`]); a later answer for another version is an error, so that a
+//!   file replaced while it is read never mixes the bytes of two files.
 //! - Errors name the URL without its query string (which may hold a presigned URL's
 //!   credentials): a 4xx or 5xx status, a server that ignores ranges (200 with the whole file,
 //!   [`DemError::NoRanges`]), an answer for another range, a body shorter than the range, a
@@ -68,6 +71,8 @@ pub struct RangeReader {
     opts: RangeOptions,
     /// The file's size, from the first answer's `Content-Range`.
     size: u64,
+    /// The file's version, from the first answer's `ETag` or `Last-Modified`.
+    version: Option<String>,
     /// The read position.
     pos: u64,
     /// Cached blocks (index, bytes), least recently used first.
@@ -79,6 +84,10 @@ pub struct RangeReader {
     /// Requests that got an answer, for benchmarks.
     requests: u64,
 }
+
+/// An answer: the file's size, the bytes asked for, and the file's version if the server named
+/// it.
+type Answer = (u64, Vec<u8>, Option<String>);
 
 /// A failed request: whether trying again may help, and the error.
 enum Failure {
@@ -113,14 +122,16 @@ impl RangeReader {
                 ..opts
             },
             size: 0,
+            version: None,
             pos: 0,
             blocks: Vec::new(),
             pinned: 0..0,
             fetched: 0,
             requests: 0,
         };
-        let (total, body) = r.get(0, r.opts.block_size - 1, None)?;
+        let (total, body, version) = r.get(0, r.opts.block_size - 1, None)?;
         r.size = total;
+        r.version = version;
         r.insert(0, body);
         Ok(r)
     }
@@ -128,6 +139,12 @@ impl RangeReader {
     /// The file's size in bytes.
     pub fn size(&self) -> u64 {
         self.size
+    }
+
+    /// The file's version as the server named it (its `ETag`, or its `Last-Modified`), if it
+    /// did.
+    pub fn version(&self) -> Option<&str> {
+        self.version.as_deref()
     }
 
     /// The URL without its query string, as messages name it.
@@ -152,7 +169,7 @@ impl RangeReader {
     fn fetch(&mut self, first: u64, last: u64) -> Result<(), DemError> {
         let bs = self.opts.block_size;
         let end = ((last + 1) * bs).min(self.size);
-        let (_, body) = self.get(first * bs, end - 1, Some(self.size))?;
+        let (_, body, _) = self.get(first * bs, end - 1, Some(self.size))?;
         let mut body = body.as_slice();
         for index in first..=last {
             let (block, rest) = body.split_at((bs as usize).min(body.len()));
@@ -163,15 +180,15 @@ impl RangeReader {
     }
 
     /// Bytes `a..=b` (clamped to the file's end where its size is known), tried again on
-    /// transport failures; returns the file's size and the bytes.
-    fn get(&mut self, a: u64, b: u64, size: Option<u64>) -> Result<(u64, Vec<u8>), DemError> {
+    /// transport failures; returns the file's size, the bytes and the file's version.
+    fn get(&mut self, a: u64, b: u64, size: Option<u64>) -> Result<Answer, DemError> {
         let mut tries = 0;
         loop {
             match self.request(a, b, size) {
-                Ok((total, body)) => {
+                Ok(answer) => {
                     self.requests += 1;
-                    self.fetched += body.len() as u64;
-                    return Ok((total, body));
+                    self.fetched += answer.1.len() as u64;
+                    return Ok(answer);
                 }
                 Err(Failure::Transport(why)) if tries < self.opts.retries => {
                     tries += 1;
@@ -190,9 +207,9 @@ impl RangeReader {
         }
     }
 
-    /// One request for bytes `a..=b`: checks the status and `Content-Range` and reads the
-    /// body whole.
-    fn request(&self, a: u64, b: u64, size: Option<u64>) -> Result<(u64, Vec<u8>), Failure> {
+    /// One request for bytes `a..=b`: checks the status, the `Content-Range` and the version
+    /// (after the first), and reads the body whole.
+    fn request(&self, a: u64, b: u64, size: Option<u64>) -> Result<Answer, Failure> {
         let asked = format!("bytes {a}-{b}");
         let fail = |detail: String| Failure::Final(self.error(detail));
         let mut resp = match self
@@ -260,6 +277,15 @@ impl RangeReader {
                 "the file changed while it was read: it was {size} bytes and is now {total}"
             )));
         }
+        let version = header("etag").or_else(|| header("last-modified"));
+        if let (Some(was), Some(now)) = (&self.version, &version)
+            && size.is_some()
+            && was != now
+        {
+            return Err(fail(format!(
+                "the file changed while it was read: its version was {was}, now {now}"
+            )));
+        }
         if start != a || end != b.min(total.saturating_sub(1)) || end < start {
             return Err(fail(format!(
                 "the server answered {range:?} to a request for {asked}"
@@ -286,7 +312,7 @@ impl RangeReader {
                 }
             }
         }
-        Ok((total, body))
+        Ok((total, body, version))
     }
 
     /// Caches block `index`, evicting the least recently used blocks beyond the cache's size

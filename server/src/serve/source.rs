@@ -69,6 +69,10 @@ pub fn cache_key<S: AsRef<str>>(specs: &[S], opts: &LoadOptions) -> u64 {
         .collect();
     for spec in &specs {
         let spec = spec.as_str();
+        if crate::dem::is_url(spec) {
+            url_identity(spec).hash(&mut h);
+            continue;
+        }
         match file_digest(spec) {
             // A file by its name and contents, not its folder or its time: replicas that
             // fetched the same DEM into different places, at different times, build the
@@ -117,6 +121,20 @@ pub fn cached_store_path<S: AsRef<str>>(
         stem.push_str(&format!("+{}", specs.len() - 1));
     }
     cache_dir.join(format!("{stem}-{:016x}.relief", cache_key(specs, opts)))
+}
+
+/// A URL's identity as a store's key: the URL without its query string (a presigned URL's
+/// signature changes with every signing, the object does not), the object's size and its
+/// version (`ETag` or `Last-Modified`), as its first block's answer gives them, so that a
+/// replaced object builds a new store. An object the server names no version of is known by
+/// its URL and size alone. Where the URL cannot be read, by its URL: the load that follows
+/// reports why.
+fn url_identity(url: &str) -> (String, Option<u64>, Option<String>) {
+    let shown = crate::dem::http_range::without_query(url).to_string();
+    match crate::dem::http_range::RangeReader::open(url) {
+        Ok(r) => (shown, Some(r.size()), r.version().map(str::to_string)),
+        Err(_) => (shown, None, None),
+    }
 }
 
 /// A DEM file's name, length and CRC-32 of its contents; `None` when `spec` is not a readable

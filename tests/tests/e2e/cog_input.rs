@@ -323,6 +323,16 @@ fn cogs_served_by_nginx_load_by_url_and_a_window_fetches_one_tile() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("nowhere.tif") && err.contains("404"), "{err}");
+
+    // The server's store cache knows a URL by its object, not its signature: two signings of
+    // the same object share a store, and the object replaced (nginx's ETag changes with the
+    // file) builds a new one.
+    let key = |u: &str| relief_server::serve::source::cache_key(&[u], &LoadOptions::default());
+    let crop = url("fuji_crop.tif");
+    let first = key(&format!("{crop}?X-Amz-Signature=aaaa"));
+    assert_eq!(first, key(&format!("{crop}?X-Amz-Signature=bbbb")));
+    std::fs::copy(&big, &small).unwrap();
+    assert_ne!(first, key(&format!("{crop}?X-Amz-Signature=aaaa")));
 }
 
 /// Where the TileByteCounts entry of tile `k` is in a classic little-endian TIFF (as GDAL

@@ -1,8 +1,8 @@
 //! Tests of [`RangeReader`](super::RangeReader) (declared in `http_range.rs`) against tiny HTTP
 //! servers on 127.0.0.1, one a misbehaviour: one that answers ranges properly, one that
 //! ignores them (200 and the whole file), one that 404s, one that sends a short body, one that
-//! drops the connection mid-body (always, or once), one that answers another range, and one
-//! that never answers.
+//! drops the connection mid-body (always, or once), one that answers another range, one that
+//! never answers, and one whose file is replaced between requests.
 
 use super::{RangeOptions, RangeReader};
 use crate::dem::cog::tests::{check_window, tiled};
@@ -33,6 +33,9 @@ enum Mode {
     WrongRange,
     /// Reads the request and never answers.
     Silent,
+    /// As `Ranges`, with an `ETag` that changes with every connection: a file replaced between
+    /// any two requests.
+    Replaced,
 }
 
 /// Serves `data` in `mode` on a free loopback port; returns the URL (with a query string that
@@ -78,19 +81,26 @@ fn answer(mut s: TcpStream, data: &[u8], mode: Mode, n: usize) {
     let len = data.len();
     let b = b.min(len - 1);
     let body = &data[a..=b];
+    let etag = match mode {
+        Mode::Replaced => format!("ETag: \"v{n}\"\r\n"),
+        _ => String::new(),
+    };
     let reply =
         |s: &mut TcpStream, status: &str, range: Option<String>, length: usize, body: &[u8]| {
             let range = range.map_or(String::new(), |r| format!("Content-Range: {r}\r\n"));
             let _ = write!(
                 s,
-                "HTTP/1.1 {status}\r\nContent-Length: {length}\r\n{range}Connection: close\r\n\r\n"
+                "HTTP/1.1 {status}\r\nContent-Length: {length}\r\n{range}{etag}Connection: \
+                 close\r\n\r\n"
             );
             let _ = s.write_all(body);
             let _ = s.flush();
         };
     let range = Some(format!("bytes {a}-{b}/{len}"));
     match mode {
-        Mode::Ranges => reply(&mut s, "206 Partial Content", range, body.len(), body),
+        Mode::Ranges | Mode::Replaced => {
+            reply(&mut s, "206 Partial Content", range, body.len(), body)
+        }
         Mode::DropsOnce if n > 0 => reply(&mut s, "206 Partial Content", range, body.len(), body),
         Mode::IgnoresRange => reply(&mut s, "200 OK", None, len, data),
         Mode::NotFound => reply(&mut s, "404 Not Found", None, 9, b"not found"),
@@ -211,6 +221,20 @@ fn misbehaving_servers_get_clear_errors() {
     assert!(e.contains("cut short"), "{e}");
     let e = fails(Mode::WrongRange).to_string();
     assert!(e.contains("bytes 1-") && e.contains("bytes 0-"), "{e}");
+    // A file replaced after the first request: its bytes are never mixed with the new one's.
+    let (url, _) = serve(bytes(), Mode::Replaced);
+    let mut r = RangeReader::open_with(&url, small()).unwrap();
+    r.seek(SeekFrom::Start(5000)).unwrap();
+    let e = r.read(&mut [0u8; 10]).unwrap_err().to_string();
+    assert!(
+        e.contains("changed while it was read") && e.contains("\"v0\"") && e.contains("\"v1\""),
+        "{e}"
+    );
+    assert!(!e.contains("secret"), "{e}");
+    let (url, _) = serve(bytes(), Mode::Replaced);
+    assert_eq!(RangeReader::open(&url).unwrap().version(), Some("\"v0\""));
+    let (url, _) = serve(bytes(), Mode::Ranges);
+    assert_eq!(RangeReader::open(&url).unwrap().version(), None);
 }
 
 #[test]
