@@ -405,6 +405,69 @@ pub fn read_file(path: &str, opts: &LoadOptions) -> Result<RawGrid, DemError> {
     }
 }
 
+/// A file's size and place, without its samples.
+#[derive(Clone, Debug)]
+pub struct Layout {
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+    /// Ground spacing, or why there is none.
+    pub spacing: Result<(f64, f64), String>,
+    /// Where it lies, if it says.
+    pub georef: Option<Georef>,
+    /// What finding out read.
+    pub io: IoStats,
+}
+
+/// A GeoTIFF's layout from its directory.
+fn tiff_layout<R: cog::Source>(mut t: cog::TiffWindows<R>) -> Layout {
+    Layout {
+        width: t.width(),
+        height: t.height(),
+        spacing: t.spacing(),
+        georef: t.georef(),
+        io: t.io(),
+    }
+}
+
+/// The size and place of the file or URL `path`: a GeoTIFF's from its directory alone (no
+/// sample decoded; a URL costs its first block), any other format's by reading it whole and
+/// letting the samples go. Where a GeoTIFF's directory cannot be read, the whole read says
+/// why.
+pub fn read_layout(path: &str, opts: &LoadOptions) -> Result<Layout, DemError> {
+    let directory = || -> Option<Layout> {
+        if is_url(path) {
+            let reader = http_range::RangeReader::open(path).ok()?;
+            return cog::TiffWindows::open(path, reader, opts)
+                .ok()
+                .map(tiff_layout);
+        }
+        let mut file = std::fs::File::open(path).ok()?;
+        let len = file.metadata().ok()?.len();
+        let mut head = [0u8; 4];
+        std::io::Read::read_exact(&mut file, &mut head).ok()?;
+        if sniff(path, &head) != Some(Format::Tiff) {
+            return None;
+        }
+        file.seek(SeekFrom::Start(0)).ok()?;
+        cog::TiffWindows::open(path, cog::Counting::new(file, len), opts)
+            .ok()
+            .map(tiff_layout)
+    };
+    if let Some(layout) = directory() {
+        return Ok(layout);
+    }
+    let raw = read_file(path, opts)?;
+    Ok(Layout {
+        width: raw.width,
+        height: raw.height,
+        spacing: raw.spacing,
+        georef: raw.georef,
+        io: raw.io,
+    })
+}
+
 /// Refuses `--encoding` and `--tile` for input that is not a terrain tile, rather than
 /// ignoring them.
 fn check_tile_options(input: &str, what: &str, opts: &LoadOptions) -> Result<(), DemError> {

@@ -19,8 +19,10 @@
 //! - The ground spacing is recomputed for the whole (at the latitude of its centre, for WGS 84
 //!   degrees and Web Mercator); `--spacing-x` and `--spacing-y` still override it.
 //!
-//! The pieces are all read before they are joined, so joining needs about twice the memory of
-//! the result.
+//! Joining takes two passes: the first learns each piece's size and place (a GeoTIFF's, local
+//! or by URL, from its directory alone; other formats, small by nature, are read and let go),
+//! the second reads each piece and copies it into the whole before the next one is read. So a
+//! mosaic needs the memory of the result and of its largest piece, not of all the pieces.
 //!
 //! A folder given as an input stands for the `.tif` and `.tiff` files in it, in name order
 //! ([`folder_tiffs`]): a folder of Cloud-Optimized GeoTIFFs is one mosaic, as GDAL's VRTs are
@@ -46,6 +48,7 @@ pub fn join(specs: &[&str], opts: &LoadOptions) -> Result<(String, RawGrid), Dem
                 .into(),
         });
     }
+    // Pass 1: each piece's size and place.
     let mut pieces = Vec::with_capacity(specs.len());
     for &spec in specs {
         let err = |detail: String| DemError::Mosaic {
@@ -60,15 +63,15 @@ pub fn join(specs: &[&str], opts: &LoadOptions) -> Result<(String, RawGrid), Dem
                     .into(),
             ));
         }
-        let raw = read_file(spec, opts)?;
-        let Some(g) = raw.georef.clone() else {
+        let layout = super::read_layout(spec, opts)?;
+        let Some(g) = layout.georef.clone() else {
             return Err(err(
                 "it has no georeference (no EPSG code or tie point), so it cannot be placed \
                  beside the others"
                     .into(),
             ));
         };
-        pieces.push((spec, g, raw));
+        pieces.push((spec, g, layout));
     }
     let (first, g0) = (pieces[0].0, pieces[0].1.clone());
     // Each piece's (column, row) offset from the first piece, in samples.
@@ -81,13 +84,13 @@ pub fn join(specs: &[&str], opts: &LoadOptions) -> Result<(String, RawGrid), Dem
     let max_c = pieces
         .iter()
         .zip(&offsets)
-        .map(|((_, _, r), o)| o.0 + r.width as i64)
+        .map(|((_, _, l), o)| o.0 + l.width as i64)
         .max()
         .unwrap_or(0);
     let max_r = pieces
         .iter()
         .zip(&offsets)
-        .map(|((_, _, r), o)| o.1 + r.height as i64)
+        .map(|((_, _, l), o)| o.1 + l.height as i64)
         .max()
         .unwrap_or(0);
     let clamp = |v: i64| u32::try_from(v).unwrap_or(u32::MAX);
@@ -96,7 +99,23 @@ pub fn join(specs: &[&str], opts: &LoadOptions) -> Result<(String, RawGrid), Dem
     let n = w as usize * h as usize;
     let mut heights = vec![0.0f32; n];
     let mut measured = VoidMask::new(n);
-    for ((spec, _, raw), &(oc, or)) in pieces.iter().zip(&offsets) {
+    let mut io = IoStats::default();
+    // Pass 2: each piece read and copied into the whole, one at a time.
+    for ((spec, _, layout), &(oc, or)) in pieces.iter().zip(&offsets) {
+        let raw = read_file(spec, opts)?;
+        if (raw.width, raw.height) != (layout.width, layout.height) {
+            return Err(DemError::Mosaic {
+                input: spec.to_string(),
+                detail: format!(
+                    "it was {} x {} samples and is now {} x {}: it changed while the mosaic \
+                     was read",
+                    layout.width, layout.height, raw.width, raw.height
+                ),
+            });
+        }
+        // The directory read in the first pass counts as read; the file, once.
+        io += raw.io;
+        io.bytes_read += layout.io.bytes_read;
         let (mut differ, mut worst) = (0u64, 0.0f32);
         let (c0, r0) = ((oc - min_c) as usize, (or - min_r) as usize);
         for r in 0..raw.height as usize {
@@ -121,10 +140,6 @@ pub fn join(specs: &[&str], opts: &LoadOptions) -> Result<(String, RawGrid), Dem
                  theirs, by up to {worst} m; its own win"
             );
         }
-    }
-    let mut io = IoStats::default();
-    for (_, _, raw) in &pieces {
-        io += raw.io;
     }
     let mut voids = VoidMask::new(n);
     for i in 0..n {
