@@ -188,23 +188,13 @@ impl<W: Write + std::io::Seek> SectionWriter<W> {
         &mut self,
         parts: impl Iterator<Item = &'p [u8]> + Clone,
     ) -> std::io::Result<()> {
-        let Some(slot) = self.header.sections.get_mut(self.next) else {
-            return Err(std::io::Error::other(format!(
-                "a store has {SECTION_COUNT} sections, not more"
-            )));
-        };
         let len: u64 = parts.clone().map(|p| p.len() as u64).sum();
-        *slot = (self.pos, len);
+        self.claim(len)?;
         for p in parts {
             self.out.write_all(p)?;
             self.crc.update(p);
         }
-        self.pos += len;
-        let pad = (8 - self.pos % 8) % 8;
-        self.out.write_all(&[0u8; 8][..pad as usize])?;
-        self.pos += pad;
-        self.next += 1;
-        Ok(())
+        self.close(len)
     }
 
     /// Where the next section starts.
@@ -215,17 +205,27 @@ impl<W: Write + std::io::Seek> SectionWriter<W> {
     /// Takes the next section as `len` bytes already written in place at [`Self::position`]
     /// (by positioned writes to the same file) with checksum `crc`, and moves past it.
     pub fn section_written(&mut self, len: u64, crc: &crc32fast::Hasher) -> std::io::Result<()> {
-        use std::io::SeekFrom;
+        self.claim(len)?;
+        self.crc.combine(crc);
+        self.out.seek(std::io::SeekFrom::Start(self.pos + len))?;
+        self.close(len)
+    }
+
+    /// Records the next section as `len` bytes from here.
+    fn claim(&mut self, len: u64) -> std::io::Result<()> {
         let Some(slot) = self.header.sections.get_mut(self.next) else {
             return Err(std::io::Error::other(format!(
                 "a store has {SECTION_COUNT} sections, not more"
             )));
         };
         *slot = (self.pos, len);
-        self.crc.combine(crc);
+        Ok(())
+    }
+
+    /// Moves past the `len` bytes of the section just written and pads it to 8 bytes.
+    fn close(&mut self, len: u64) -> std::io::Result<()> {
         self.pos += len;
         let pad = (8 - self.pos % 8) % 8;
-        self.out.seek(SeekFrom::Start(self.pos))?;
         self.out.write_all(&[0u8; 8][..pad as usize])?;
         self.pos += pad;
         self.next += 1;
